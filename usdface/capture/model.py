@@ -1,0 +1,143 @@
+"""The in-memory capture: marker names, positions per frame, validity, rate and units.
+
+Readers in :mod:`usdface.io` return a :class:`Capture`; conditioning functions in
+:mod:`usdface.capture` take one and return a new one (inputs are never modified); the USD layer
+code writes and reads it.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MarkerError, list_names
+
+
+@dataclass(frozen=True)
+class Capture:
+    """Marker motion capture.
+
+    Attributes
+    ----------
+    names : tuple of str, length M
+        Marker names, unique, in a stable order (the file's order).
+    positions : ndarray, shape (F, M, 3), float64
+        Marker positions per frame in ``units``; NaN where a sample is invalid (missing).
+        In a stabilised capture these are head-local positions: world = head_motion[f] @ local.
+    rate : float
+        Capture rate in Hz (frames per second). Frame ``f`` is at time ``(start_frame + f) / rate``.
+    units : str or None
+        Linear unit of ``positions`` (``"mm"``, ``"cm"``, ``"m"``...), None when unknown.
+    start_frame : int
+        Time code of the first frame (time code = frame index at the capture rate).
+    neutral_frame : int
+        Index (0-based, into the F frames) of the neutral pose.
+    source : str
+        The file the capture came from (as given, for provenance).
+    head_motion : ndarray, shape (F, 4, 4), float64, optional
+        Rigid head transform per frame removed by stabilisation, column-vector convention
+        (world = head_motion[f] @ [local, 1]). None when the capture was not stabilised.
+    history : tuple of dict
+        Conditioning steps applied, in order, each a JSON-serialisable dict with a ``"step"`` key.
+    """
+
+    names: tuple[str, ...]
+    positions: np.ndarray
+    rate: float
+    units: str | None = None
+    start_frame: int = 0
+    neutral_frame: int = 0
+    source: str = ""
+    head_motion: np.ndarray | None = None
+    history: tuple[dict, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        names = tuple(str(n) for n in self.names)
+        object.__setattr__(self, "names", names)
+        pos = np.asarray(self.positions, dtype=np.float64)
+        object.__setattr__(self, "positions", pos)
+        where = f" in {self.source}" if self.source else ""
+        if pos.ndim != 3 or pos.shape[2] != 3:
+            raise MarkerError(f"capture positions{where} must have shape (frames, markers, 3); got {pos.shape}")
+        if pos.shape[0] == 0:
+            raise MarkerError(f"capture{where} has zero frames")
+        if pos.shape[1] == 0:
+            raise MarkerError(f"capture{where} has zero markers")
+        if len(names) != pos.shape[1]:
+            raise MarkerError(f"capture{where} has {len(names)} names for {pos.shape[1]} markers")
+        seen, dups = set(), []
+        for n in names:
+            if n in seen:
+                dups.append(n)
+            seen.add(n)
+        if dups:
+            raise MarkerError(f"capture{where} has duplicate marker names: {list_names(sorted(set(dups)))}")
+        if not (np.isfinite(self.rate) and self.rate > 0):
+            raise MarkerError(f"capture{where} rate must be a positive number of Hz; got {self.rate}")
+        if not 0 <= self.neutral_frame < pos.shape[0]:
+            raise MarkerError(
+                f"capture{where}: neutral frame index {self.neutral_frame} outside 0..{pos.shape[0] - 1}"
+            )
+        if self.head_motion is not None:
+            hm = np.asarray(self.head_motion, dtype=np.float64)
+            if hm.shape != (pos.shape[0], 4, 4):
+                raise MarkerError(f"capture{where}: head_motion must have shape ({pos.shape[0]}, 4, 4); got {hm.shape}")
+            object.__setattr__(self, "head_motion", hm)
+        object.__setattr__(self, "history", tuple(self.history))
+
+    # -- shape -----------------------------------------------------------------------------------
+    @property
+    def n_frames(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def n_markers(self) -> int:
+        return self.positions.shape[1]
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(F, M) bool: True where the sample is a real measurement."""
+        return np.isfinite(self.positions).all(axis=2)
+
+    @property
+    def times(self) -> np.ndarray:
+        """(F,) float64 time codes (frame indices at the capture rate)."""
+        return self.start_frame + np.arange(self.n_frames, dtype=np.float64)
+
+    @property
+    def neutral(self) -> np.ndarray:
+        """(M, 3) positions at the neutral frame (NaN where invalid there)."""
+        return self.positions[self.neutral_frame]
+
+    def index(self, name: str) -> int:
+        """Index of marker ``name``; MarkerError naming the known markers if absent."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise MarkerError(
+                f"marker {name!r} not in capture{(' ' + self.source) if self.source else ''}; "
+                f"capture has {self.n_markers} markers: {list_names(self.names)}"
+            ) from None
+
+    def world_positions(self) -> np.ndarray:
+        """(F, M, 3) positions with the stabilisation head motion put back."""
+        if self.head_motion is None:
+            return self.positions.copy()
+        r = self.head_motion[:, :3, :3]
+        t = self.head_motion[:, :3, 3]
+        return np.einsum("fij,fmj->fmi", r, self.positions) + t[:, None, :]
+
+    def replace(self, step: dict | None = None, **changes) -> "Capture":
+        """A copy with ``changes`` applied and, when given, ``step`` appended to the history."""
+        if step is not None:
+            changes["history"] = self.history + (dict(step),)
+        return dataclasses.replace(self, **changes)
+
+    def check_not_all_invalid(self) -> None:
+        """Raise MarkerError naming markers that have no valid sample at all."""
+        dead = [n for n, ok in zip(self.names, self.valid.any(axis=0)) if not ok]
+        if dead:
+            raise MarkerError(
+                f"capture{(' ' + self.source) if self.source else ''}: no valid sample for marker(s) {list_names(dead)}"
+            )
