@@ -1,0 +1,175 @@
+"""Capture layers: one Points prim of markers under an Xform carrying the head motion.
+
+Layout (every processor agrees on it)::
+
+    /Capture            Xform, default prim; xformOp:transform time-sampled = head motion removed
+                        by stabilisation (identity when not stabilised)
+    /Capture/Markers    Points + FaceMarkerSetAPI; points time-sampled, head-local, never NaN;
+                        primvars:usdface:valid time-sampled per-marker validity
+
+Time code = frame index at the capture rate; timeCodesPerSecond = framesPerSecond = rate;
+metersPerUnit = the source units (no rescaling).
+"""
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+from pxr import Gf, Usd, UsdGeom, Vt
+
+from ..capture.model import Capture
+from ..errors import InputError, MarkerError
+from .layers import AtomicLayer, open_stage, set_provenance, set_stage_metadata, stage_units
+from .schemas import require_registered
+
+CAPTURE_PRIM = "/Capture"
+MARKERS_PRIM = "/Capture/Markers"
+MARKER_SET_API = "FaceMarkerSetAPI"
+
+
+def hold_invalid(positions: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Replace invalid samples by the last valid one (the first valid one before any).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (F, M, D)
+    valid : ndarray, shape (F, M), bool
+
+    Returns
+    -------
+    ndarray, shape (F, M, D), with no NaN for markers that have at least one valid sample.
+    """
+    f = positions.shape[0]
+    idx = np.where(valid, np.arange(f)[:, None], -1)
+    np.maximum.accumulate(idx, axis=0, out=idx)
+    first = valid.argmax(axis=0)
+    idx = np.where(idx < 0, first[None, :], idx)
+    return np.take_along_axis(positions, idx[:, :, None], axis=0)
+
+
+def _matrix_to_usd(m: np.ndarray) -> Gf.Matrix4d:
+    """Column-vector 4x4 (numpy) -> row-vector Gf.Matrix4d (USD)."""
+    return Gf.Matrix4d(*np.asarray(m, dtype=np.float64).T.ravel().tolist())
+
+
+def _matrix_from_usd(m: Gf.Matrix4d) -> np.ndarray:
+    return np.array(m, dtype=np.float64).T
+
+
+def write_capture_layer(path: str | os.PathLike, capture: Capture, *, prov: dict,
+                        marker_width: float | None = None) -> str:
+    """Write ``capture`` as a capture layer at ``path`` (atomically). Returns the path."""
+    require_registered()
+    if capture.units is None:
+        raise MarkerError(f"capture {capture.source}: units unknown; pass --units")
+    capture.check_not_all_invalid()
+    valid = capture.valid
+    held = hold_invalid(capture.positions, valid).astype(np.float32)
+    start = capture.start_frame
+    with AtomicLayer(path) as stage:
+        set_stage_metadata(stage, units=capture.units, default_prim="Capture", rate=capture.rate,
+                           start=start, end=start + capture.n_frames - 1)
+        root = UsdGeom.Xform.Define(stage, CAPTURE_PRIM)
+        points = UsdGeom.Points.Define(stage, MARKERS_PRIM)
+        prim = points.GetPrim()
+        prim.ApplyAPI(MARKER_SET_API)
+        prim.GetAttribute("usdface:markerSet:names").Set(Vt.StringArray(list(capture.names)))
+        prim.GetAttribute("usdface:markerSet:captureRate").Set(float(capture.rate))
+        prim.GetAttribute("usdface:markerSet:sourceFile").Set(os.path.basename(capture.source))
+        prim.GetAttribute("usdface:markerSet:sourceUnits").Set(capture.units)
+        prim.GetAttribute("usdface:markerSet:neutralTime").Set(float(start + capture.neutral_frame))
+        dims = next((h.get("dims") for h in capture.history if "dims" in h), 3)
+        prim.GetAttribute("usdface:markerSet:dimensions").Set(int(dims))
+        valid_attr = prim.GetAttribute("primvars:usdface:valid")
+        UsdGeom.Primvar(valid_attr).SetInterpolation(UsdGeom.Tokens.vertex)
+        if marker_width is None:
+            span = float(np.nanmax(np.ptp(held[capture.neutral_frame], axis=0)))
+            marker_width = max(span / 60.0, 1e-6)
+        points.CreateWidthsAttr(Vt.FloatArray([marker_width]))
+        points.SetWidthsInterpolation(UsdGeom.Tokens.constant)
+        points.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(Vt.Vec3fArray([Gf.Vec3f(1.0, 0.55, 0.1)]))
+        points_attr = points.CreatePointsAttr()
+        extent_attr = points.CreateExtentAttr()
+        lo, hi = held.min(axis=1), held.max(axis=1)
+        for f in range(capture.n_frames):
+            t = Usd.TimeCode(start + f)
+            points_attr.Set(Vt.Vec3fArray.FromNumpy(held[f]), t)
+            extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*lo[f].tolist()), Gf.Vec3f(*hi[f].tolist())]), t)
+            valid_attr.Set(Vt.BoolArray.FromNumpy(valid[f]), t)
+        op = root.AddTransformOp()
+        if capture.head_motion is None:
+            op.Set(Gf.Matrix4d(1.0))
+        else:
+            for f in range(capture.n_frames):
+                op.Set(_matrix_to_usd(capture.head_motion[f]), Usd.TimeCode(start + f))
+        history = json.dumps(list(capture.history), sort_keys=True, default=str)
+        set_provenance(stage, dict(prov, captureHistory=history))
+    return str(path)
+
+
+def find_marker_set(stage: Usd.Stage, *, what: str = "capture") -> Usd.Prim:
+    """The Points prim with FaceMarkerSetAPI (default prim's first, else the stage's first)."""
+    root = stage.GetDefaultPrim()
+    candidates = [root] if root else []
+    candidates.append(stage.GetPseudoRoot())
+    for top in candidates:
+        for prim in Usd.PrimRange(top):
+            if prim.HasAPI(MARKER_SET_API):
+                return prim
+    raise InputError(
+        f"{what} {stage.GetRootLayer().identifier}: no Points prim with {MARKER_SET_API} "
+        f"(expected {MARKERS_PRIM}, written by `usdface import-capture`)"
+    )
+
+
+def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = None) -> Capture:
+    """Read a capture layer back into a Capture (invalid samples become NaN)."""
+    stage = stage or open_stage(path, what="capture")
+    prim = find_marker_set(stage)
+    names = list(prim.GetAttribute("usdface:markerSet:names").Get() or [])
+    points_attr = UsdGeom.Points(prim).GetPointsAttr()
+    times = points_attr.GetTimeSamples()
+    if not times:
+        value = points_attr.Get()
+        if value is None:
+            raise InputError(f"capture {path}: {prim.GetPath()} has no points")
+        times = [Usd.TimeCode.Default()]
+    valid_attr = prim.GetAttribute("primvars:usdface:valid")
+    xformable = UsdGeom.Xformable(prim)
+    cache = UsdGeom.XformCache()
+    pos, valid, head = [], [], []
+    has_motion = xformable.TransformMightBeTimeVarying() or _parent_time_varying(prim)
+    for t in times:
+        tc = Usd.TimeCode(t) if not isinstance(t, Usd.TimeCode) else t
+        pos.append(np.asarray(points_attr.Get(tc), dtype=np.float64))
+        v = valid_attr.Get(tc) if valid_attr and valid_attr.HasValue() else None
+        valid.append(np.ones(len(names), bool) if v is None else np.asarray(v, dtype=bool))
+        if has_motion:
+            cache.SetTime(tc)
+            head.append(_matrix_from_usd(cache.GetLocalToWorldTransform(prim)))
+    positions = np.stack(pos)
+    if positions.shape[1] != len(names):
+        raise InputError(f"capture {path}: {len(names)} marker names but {positions.shape[1]} points")
+    valid = np.stack(valid)
+    positions[~valid] = np.nan
+    head_motion = np.stack(head) if head else None
+    rate = prim.GetAttribute("usdface:markerSet:captureRate").Get() or stage.GetTimeCodesPerSecond()
+    start = int(round(times[0])) if not isinstance(times[0], Usd.TimeCode) else 0
+    neutral_time = prim.GetAttribute("usdface:markerSet:neutralTime").Get() or start
+    source = prim.GetAttribute("usdface:markerSet:sourceFile").Get()
+    history = json.loads(stage.GetRootLayer().customLayerData.get("usdface", {}).get("captureHistory", "[]"))
+    units = stage_units(stage)
+    return Capture(names=names, positions=positions, rate=float(rate), units=units, start_frame=start,
+                   neutral_frame=int(round(neutral_time)) - start, source=str(path),
+                   head_motion=head_motion, history=tuple(history))
+
+
+def _parent_time_varying(prim: Usd.Prim) -> bool:
+    p = prim.GetParent()
+    while p and not p.IsPseudoRoot():
+        x = UsdGeom.Xformable(p)
+        if x and x.TransformMightBeTimeVarying():
+            return True
+        p = p.GetParent()
+    return False
