@@ -1,0 +1,220 @@
+"""The ``usdface`` command: one entry point, one subcommand per processor.
+
+Thin by design: parse options, call a processor, report. Every UsdFaceError becomes one line on
+stderr and exit code 2; a failed `check` exits 1.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import UsdFaceError
+
+log = logging.getLogger("usdface")
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="print a machine-readable JSON summary on stdout")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
+    p.add_argument("-q", "--quiet", action="store_true", help="only errors")
+
+
+def _capture_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("capture reading and conditioning")
+    g.add_argument("--units", choices=["mm", "cm", "dm", "m", "in", "ft"],
+                   help="units of the capture file when it does not declare them (CSV)")
+    g.add_argument("--rate", type=float, metavar="HZ", help="capture rate when the file does not declare it")
+    g.add_argument("--up-axis", choices=["Y", "Z"], help="the source's up axis (default: Z for C3D, Y otherwise)")
+    g.add_argument("--stabilize", nargs="?", const="auto", metavar="auto|M1,M2,...",
+                   help="remove rigid head motion: 'auto' picks the most rigid markers, or name them")
+    g.add_argument("--fill-gaps", type=int, metavar="N", help="fill gaps of at most N frames")
+    g.add_argument("--filter", choices=["butterworth", "savgol"], help="zero-phase noise filter")
+    g.add_argument("--cutoff", type=float, default=8.0, metavar="HZ", help="filter cutoff (default 8 Hz)")
+    g.add_argument("--trim", nargs=2, type=int, metavar=("START", "END"),
+                   help="keep frames START..END-1 (0-based frame indices of the file)")
+    g.add_argument("--start-frame", type=int, metavar="F", help="time code of the first frame after trimming")
+    g.add_argument("--resample", type=float, metavar="HZ", help="resample to this rate")
+    g.add_argument("--neutral", default=None, metavar="FRAME|auto",
+                   help="neutral frame (0-based index after trimming) or 'auto' (default: first frame)")
+
+
+def _add_subcommands(sub) -> None:
+    p = sub.add_parser("import-capture", help="import marker capture (Maya ASCII, C3D, TRC, CSV) into a capture layer",
+                       description="Import marker capture (.ma, .c3d, .trc, .csv) into a .usdc capture layer "
+                                   "(/Capture/Markers), optionally stabilised, gap-filled, filtered, trimmed, resampled.")
+    p.add_argument("input", help="capture file")
+    p.add_argument("-o", "--output", required=True, help="capture layer to write (.usdc)")
+    _capture_options(p)
+    _add_common(p)
+    p.set_defaults(func=_cmd_import_capture)
+
+    p = sub.add_parser("import-mesh", help="import a face mesh (OBJ, PLY, STL, OFF, USD) into a mesh layer",
+                       description="Import a face mesh into a mesh layer (/Face/Geom), keeping polygons and UVs, "
+                                   "with boundary loops found and holes stored as face regions.")
+    p.add_argument("input", help="mesh file")
+    p.add_argument("-o", "--output", required=True, help="mesh layer to write (.usdc or .usda)")
+    p.add_argument("--units", choices=["mm", "cm", "dm", "m", "in", "ft"],
+                   help="units of the mesh file (OBJ has none: default cm)")
+    p.add_argument("--up-axis", choices=["Y", "Z"], default="Y", help="the source's up axis (Z is rotated to Y)")
+    _add_common(p)
+    p.set_defaults(func=_cmd_import_mesh)
+
+    p = sub.add_parser("bind", help="bind capture markers to points on the mesh surface",
+                       description="Bind each capture marker to a point on the mesh surface, from a layout file "
+                                   "or by automatic alignment of the neutral marker cloud.")
+    p.add_argument("--mesh", required=True, help="mesh layer (from import-mesh)")
+    p.add_argument("--capture", required=True, help="capture layer (from import-capture)")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--layout", help="marker layout JSON (usdface-layout/1)")
+    src.add_argument("--auto", action="store_true", help="align the neutral marker cloud to the surface")
+    p.add_argument("--retarget", choices=["displacement", "similarity"], default="displacement",
+                   help="displacement: capture motion rotated, not scaled (the paper); similarity: also scaled")
+    p.add_argument("-o", "--output", required=True, help="binding layer to write (.usda)")
+    _add_common(p)
+    p.set_defaults(func=_cmd_bind)
+
+    p = sub.add_parser("info", help="what a layer holds: prims, markers, frames, rate, units, schemas",
+                       description="Summarise a USD layer written by usdface (or any USD file).")
+    p.add_argument("file")
+    _add_common(p)
+    p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("check", help="validate a layer (USD's validators + usdface's rules); exit 1 on errors",
+                       description="Run UsdValidation's validators and usdface's own schema rules on a file.")
+    p.add_argument("file")
+    _add_common(p)
+    p.set_defaults(func=_cmd_check)
+
+    p = sub.add_parser("preview", help="software-rendered PNG of a mesh/binding/animation layer (no GPU)",
+                       description="Render a picture of the face with regions coloured and markers drawn.")
+    p.add_argument("file", help="a mesh, binding, analysis, animation or shot layer")
+    p.add_argument("-o", "--output", required=True, help="PNG to write")
+    p.add_argument("--frame", type=float, help="time code to show (default: the layer's start)")
+    p.add_argument("--frames", type=float, nargs="+", metavar="F", help="several time codes: a contact sheet")
+    p.add_argument("--view", choices=["front", "left", "right", "side"], default="front")
+    p.add_argument("--size", type=int, default=768, help="image size in pixels (square)")
+    p.add_argument("--color", choices=["regions", "displacement", "error", "hybrid-weight", "none"], default="regions",
+                   help="colour the surface by region, by displacement from the rest pose, by error against "
+                        "--reference, or by the hybrid weight")
+    p.add_argument("--reference", help="a layer with reference points (for --color error)")
+    p.add_argument("--labels", action="store_true", help="write marker names")
+    _add_common(p)
+    p.set_defaults(func=_cmd_preview)
+
+    p = sub.add_parser("plugin-path", help="print the folder to put on PXR_PLUGINPATH_NAME (for DCCs)",
+                       description="Print the folder holding usdface's plugInfo.json. DCCs import their own pxr "
+                                   "before any plug-in: set PXR_PLUGINPATH_NAME to this folder before starting them.")
+    p.set_defaults(func=_cmd_plugin_path, json=False, verbose=0, quiet=False)
+
+
+# -- command implementations (parse -> processor -> report) ----------------------------------------
+
+def _stabilize_arg(value):
+    if value is None or value == "auto":
+        return value
+    return [v.strip() for v in value.split(",") if v.strip()]
+
+
+def _neutral_arg(value):
+    if value is None or value == "auto":
+        return value
+    try:
+        return int(value)
+    except ValueError:
+        raise UsdFaceError(f"--neutral: expected a frame index or 'auto'; got {value!r}") from None
+
+
+def _cmd_import_capture(args) -> dict:
+    from .processors.import_capture import import_capture
+
+    return import_capture(args.input, args.output, units=args.units, rate=args.rate, up_axis=args.up_axis,
+                          stabilize=_stabilize_arg(args.stabilize), fill_gaps=args.fill_gaps, filter=args.filter,
+                          cutoff=args.cutoff, trim=args.trim, start_frame=args.start_frame,
+                          resample=args.resample, neutral=_neutral_arg(args.neutral))
+
+
+def _cmd_import_mesh(args) -> dict:
+    from .processors.import_mesh import import_mesh
+
+    return import_mesh(args.input, args.output, units=args.units, up_axis=args.up_axis)
+
+
+def _cmd_bind(args) -> dict:
+    from .processors.bind import bind
+
+    return bind(args.mesh, args.capture, args.output, layout=args.layout, auto=args.auto, retarget=args.retarget)
+
+
+def _cmd_info(args) -> dict:
+    from .processors.info import info
+
+    return info(args.file)
+
+
+def _cmd_check(args) -> dict:
+    from .usd.validation import check_layer
+
+    findings = check_layer(args.file)
+    errors = [f for f in findings if f.severity == "error"]
+    return {"file": args.file, "ok": not errors, "errors": len(errors),
+            "findings": [f.__dict__ for f in findings], "_text": [str(f) for f in findings] or ["no problems found"],
+            "_exit": 1 if errors else 0}
+
+
+def _cmd_preview(args) -> dict:
+    from .processors.preview import preview
+
+    return preview(args.file, args.output, frame=args.frame, frames=args.frames, view=args.view,
+                   size=args.size, color=args.color, reference=args.reference, labels=args.labels)
+
+
+def _cmd_plugin_path(args) -> dict:
+    from .usd.schemas import plugin_path
+
+    return {"_text": [str(plugin_path())], "path": str(plugin_path())}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="usdface",
+        description="Facial-animation stage processors for OpenUSD: import capture and meshes, bind markers, "
+                    "compute distance matrices, transfer marker motion to the face, preview and check layers.")
+    parser.add_argument("--version", action="version", version=f"usdface {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    _add_subcommands(sub)
+    return parser
+
+
+def _print_summary(summary: dict, as_json: bool, quiet: bool) -> None:
+    if as_json:
+        print(json.dumps({k: v for k, v in summary.items() if not k.startswith("_")}, indent=2, default=str))
+        return
+    if quiet:
+        return
+    for line in summary.get("_text", []):
+        print(line)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.ERROR if args.quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
+    logging.basicConfig(level=level, format="usdface: %(levelname)s: %(message)s", stream=sys.stderr)
+    try:
+        summary = args.func(args)
+    except UsdFaceError as exc:
+        print(f"usdface {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"usdface {args.command}: interrupted", file=sys.stderr)
+        return 130
+    _print_summary(summary, args.json, args.quiet)
+    return int(summary.get("_exit", 0))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,132 @@
+"""What a USD layer holds, for `usdface info`."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from pxr import Usd, UsdGeom, UsdSkel
+
+from .layers import get_provenance, open_stage, stage_units
+
+
+def describe(path: str | os.PathLike) -> dict:
+    """A JSON-serialisable summary of the stage opened from ``path``."""
+    stage = open_stage(path, what="file")
+    layer = stage.GetRootLayer()
+    out = {
+        "file": str(path),
+        "defaultPrim": layer.defaultPrim or None,
+        "metersPerUnit": UsdGeom.GetStageMetersPerUnit(stage) if stage.HasAuthoredMetadata("metersPerUnit") else None,
+        "units": stage_units(stage),
+        "upAxis": UsdGeom.GetStageUpAxis(stage),
+        "timeCodesPerSecond": stage.GetTimeCodesPerSecond(),
+        "framesPerSecond": stage.GetFramesPerSecond(),
+        "startTimeCode": stage.GetStartTimeCode() if stage.HasAuthoredTimeCodeRange() else None,
+        "endTimeCode": stage.GetEndTimeCode() if stage.HasAuthoredTimeCodeRange() else None,
+        "subLayers": list(layer.subLayerPaths),
+        "provenance": get_provenance(stage) or None,
+        "prims": [],
+    }
+    for prim in stage.Traverse():
+        entry = {"path": str(prim.GetPath()), "type": prim.GetTypeName() or None,
+                 "schemas": list(prim.GetAppliedSchemas())}
+        if prim.HasAPI("FaceMarkerSetAPI"):
+            names = list(prim.GetAttribute("usdface:markerSet:names").Get() or [])
+            pts = UsdGeom.Points(prim).GetPointsAttr()
+            samples = pts.GetTimeSamples()
+            valid = prim.GetAttribute("primvars:usdface:valid")
+            invalid = 0
+            if valid and valid.HasValue():
+                invalid = int(sum(int((~np.asarray(valid.Get(t), dtype=bool)).sum()) for t in valid.GetTimeSamples()))
+            entry["markerSet"] = {
+                "markers": len(names), "names": names, "frames": len(samples),
+                "captureRate": prim.GetAttribute("usdface:markerSet:captureRate").Get(),
+                "sourceFile": prim.GetAttribute("usdface:markerSet:sourceFile").Get(),
+                "sourceUnits": prim.GetAttribute("usdface:markerSet:sourceUnits").Get(),
+                "neutralTime": prim.GetAttribute("usdface:markerSet:neutralTime").Get(),
+                "invalidSamples": invalid,
+                "headMotion": bool(UsdGeom.Xformable(prim.GetParent()).TransformMightBeTimeVarying()),
+            }
+        if prim.IsA(UsdGeom.Mesh):
+            mesh = UsdGeom.Mesh(prim)
+            pts_attr = mesh.GetPointsAttr()
+            counts = mesh.GetFaceVertexCountsAttr().Get()
+            entry["mesh"] = {
+                "points": len(pts_attr.Get(Usd.TimeCode.EarliestTime()) or []),
+                "faces": len(counts or []),
+                "faceSizes": {int(k): int(v) for k, v in zip(*np.unique(np.asarray(counts or []), return_counts=True))},
+                "animatedFrames": pts_attr.GetNumTimeSamples(),
+                "subdivisionScheme": mesh.GetSubdivisionSchemeAttr().Get(),
+                "uvs": bool(UsdGeom.PrimvarsAPI(prim).GetPrimvar("st")),
+            }
+            regions = [s.split(":", 1)[1] for s in prim.GetAppliedSchemas() if s.startswith("FaceRegionAPI:")]
+            if regions:
+                entry["regions"] = {r: {"role": prim.GetAttribute(f"usdface:region:{r}:role").Get(),
+                                        "vertices": len(prim.GetAttribute(f"usdface:region:{r}:indices").Get() or [])}
+                                    for r in regions}
+            if prim.HasAPI("FaceMarkerBindingAPI"):
+                res = np.asarray(prim.GetAttribute("usdface:binding:residuals").Get() or [], dtype=float)
+                entry["binding"] = {
+                    "markers": len(prim.GetAttribute("usdface:binding:markerNames").Get() or []),
+                    "method": prim.GetAttribute("usdface:binding:method").Get(),
+                    "retarget": prim.GetAttribute("usdface:binding:retarget").Get(),
+                    "residualMedian": float(np.median(res)) if res.size else None,
+                    "residualMax": float(res.max()) if res.size else None,
+                }
+            matrices = [s.split(":", 1)[1] for s in prim.GetAppliedSchemas() if s.startswith("FaceDistanceMatrixAPI:")]
+            if matrices:
+                entry["distanceMatrices"] = {
+                    m: {"method": prim.GetAttribute(f"usdface:distanceMatrix:{m}:method").Get(),
+                        "backend": prim.GetAttribute(f"usdface:distanceMatrix:{m}:backend").Get(),
+                        "markers": len(prim.GetAttribute(f"usdface:distanceMatrix:{m}:markerNames").Get() or [])}
+                    for m in matrices}
+            if prim.HasAPI("FaceTransferAPI"):
+                entry["transfer"] = {k: prim.GetAttribute(f"usdface:transfer:{k}").Get()
+                                     for k in ("mode", "kernel", "distanceMethod", "regularization", "conditionNumber")}
+        if prim.IsA(UsdSkel.Skeleton):
+            entry["joints"] = len(UsdSkel.Skeleton(prim).GetJointsAttr().Get() or [])
+        out["prims"].append(entry)
+    return out
+
+
+def format_description(d: dict) -> list[str]:
+    """Human-readable lines for :func:`describe`'s result."""
+    lines = [f"{d['file']}"]
+    units = d["units"] or (f"metersPerUnit={d['metersPerUnit']}" if d["metersPerUnit"] else "not authored")
+    lines.append(f"  units: {units}   upAxis: {d['upAxis']}   defaultPrim: {d['defaultPrim']}")
+    if d["startTimeCode"] is not None:
+        lines.append(f"  time: {d['startTimeCode']:g}..{d['endTimeCode']:g} at {d['timeCodesPerSecond']:g} "
+                     f"timeCodes/s ({d['framesPerSecond']:g} fps)")
+    if d["subLayers"]:
+        lines.append(f"  subLayers: {', '.join(d['subLayers'])}")
+    if d["provenance"]:
+        lines.append(f"  written by usdface {d['provenance'].get('usdfaceVersion')} ({d['provenance'].get('processor')})")
+    for p in d["prims"]:
+        schemas = f"  [{', '.join(p['schemas'])}]" if p["schemas"] else ""
+        lines.append(f"  {p['path']} ({p['type'] or 'over'}){schemas}")
+        if "markerSet" in p:
+            m = p["markerSet"]
+            lines.append(f"      {m['markers']} markers, {m['frames']} frames at {m['captureRate']:g} Hz, "
+                         f"source units {m['sourceUnits']}, neutral time {m['neutralTime']:g}, "
+                         f"{m['invalidSamples']} invalid samples, head motion: {'yes' if m['headMotion'] else 'no'}")
+            lines.append(f"      from {m['sourceFile']}: {', '.join(m['names'][:8])}{', ...' if m['markers'] > 8 else ''}")
+        if "mesh" in p:
+            m = p["mesh"]
+            sizes = ", ".join(f"{v} {'tris' if k == 3 else 'quads' if k == 4 else f'{k}-gons'}" for k, v in m["faceSizes"].items())
+            anim = f", animated over {m['animatedFrames']} frames" if m["animatedFrames"] else ""
+            lines.append(f"      {m['points']} points, {m['faces']} faces ({sizes}), "
+                         f"subdivision {m['subdivisionScheme']}, uvs {'yes' if m['uvs'] else 'no'}{anim}")
+        for name, r in p.get("regions", {}).items():
+            lines.append(f"      region {name}: role {r['role']}, {r['vertices']} vertices")
+        if "binding" in p:
+            b = p["binding"]
+            lines.append(f"      binding: {b['markers']} markers ({b['method']}, retarget {b['retarget']}), residual median "
+                         f"{b['residualMedian']:.3g} max {b['residualMax']:.3g}")
+        for name, m in p.get("distanceMatrices", {}).items():
+            lines.append(f"      distance matrix {name}: {m['method']}/{m['backend']}, {m['markers']} markers")
+        if "transfer" in p:
+            t = p["transfer"]
+            lines.append(f"      transfer: {t['mode']} {t['kernel']} on {t['distanceMethod']} distances")
+        if "joints" in p:
+            lines.append(f"      {p['joints']} joints")
+    return lines
