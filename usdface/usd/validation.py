@@ -152,7 +152,7 @@ def _check_distance_matrices(prim: Usd.Prim, time_range=None):
         name = schema.split(":", 1)[1]
         ns = f"usdface:distanceMatrix:{name}"
         names = prim.GetAttribute(f"{ns}:markerNames").Get() or []
-        m = len(names)
+        m = len(names) + len(prim.GetAttribute(f"{ns}:constraintVertices").Get() or [])
         primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{name}")
         if not primvar or not primvar.HasValue():
             errors.append(_err(prim, "DistanceMatrixMissing", f"distance matrix {name!r}: primvars:usdface:distance:{name} missing"))
@@ -161,12 +161,12 @@ def _check_distance_matrices(prim: Usd.Prim, time_range=None):
         if primvar.GetElementSize() != m or values.size != n_points * m:
             errors.append(_err(prim, "DistanceMatrixShape",
                                f"distance matrix {name!r}: {values.size} values with elementSize {primvar.GetElementSize()}, "
-                               f"expected {n_points} vertices x {m} markers"))
+                               f"expected {n_points} vertices x {m} centres"))
         elif not np.isfinite(values).all() or (values < 0).any():
             errors.append(_err(prim, "DistanceMatrixValues", f"distance matrix {name!r} has negative, NaN or inf entries"))
-        mm = prim.GetAttribute(f"{ns}:markerDistances").Get()
+        mm = prim.GetAttribute(f"{ns}:centreDistances").Get()
         if mm is None or len(mm) != m * m:
-            errors.append(_err(prim, "DistanceMatrixShape", f"distance matrix {name!r}: markerDistances must have {m}x{m} entries"))
+            errors.append(_err(prim, "DistanceMatrixShape", f"distance matrix {name!r}: centreDistances must have {m}x{m} entries"))
     return errors
 
 
@@ -209,7 +209,7 @@ _RULES = (
      "Binding arrays one per marker, barycentrics valid, indices in range, markers in the marker set."),
     ("usdface:RegionConsistency", "UsdFaceRegionAPI", _check_regions, "Regions non-empty with indices in range."),
     ("usdface:DistanceMatrixConsistency", "UsdFaceDistanceMatrixAPI", _check_distance_matrices,
-     "Distance matrices N x M with elementSize M, finite and non-negative."),
+     "Distance matrices N x C with elementSize C (markers + constraint vertices), finite and non-negative."),
     ("usdface:TransferConsistency", "UsdFaceTransferAPI", _check_transfer,
      "Animated points with extent at every sample, finite, no stale normals."),
 )

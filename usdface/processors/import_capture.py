@@ -1,0 +1,112 @@
+"""`usdface import-capture`: a capture file -> conditioned capture layer (.usdc)."""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from ..capture.model import Capture
+from ..errors import OptionError
+from ..usd.layers import USD_SUFFIXES, check_output_path, provenance
+
+log = logging.getLogger("usdface")
+
+
+def load_capture(path, *, units=None, rate=None, up_axis=None) -> Capture:
+    """Read any capture usdface understands: a capture file (.ma .c3d .trc .csv) or a capture layer."""
+    if Path(path).suffix.lower() in USD_SUFFIXES:
+        from ..usd.capture_layer import read_capture_layer
+
+        return read_capture_layer(path)
+    from ..io.captures import read_capture
+
+    return read_capture(path, units=units, rate=rate, up_axis=up_axis)
+
+
+def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=None, cutoff=8.0, resample=None,
+                      neutral=None, stabilize=None, start_frame=None) -> tuple[Capture, dict]:
+    """Apply the optional conditioning steps in a fixed order; returns (capture, reports).
+
+    Order: trim -> marker-swap detection (reported) -> gap filling -> noise filter -> resample ->
+    neutral frame -> head stabilisation (relative to the neutral frame) -> time offset.
+    """
+    from ..capture import gaps, neutral as neutral_mod, swaps, timing
+
+    reports: dict = {}
+    if trim is not None:
+        capture = timing.trim(capture, start=trim[0], end=trim[1])
+    events = swaps.detect_swaps(capture)
+    if events:
+        reports["swaps"] = [e.summary() if hasattr(e, "summary") else e.__dict__ for e in events]
+        for e in events:
+            log.warning("possible marker swap at frame %s: %s <-> %s", e.frame, e.marker_a, e.marker_b)
+    if fill_gaps is not None:
+        capture, report = gaps.fill_gaps(capture, max_gap=fill_gaps)
+        reports["gaps"] = report.summary()
+    if filter is not None:
+        from ..capture import filtering
+
+        capture = filtering.filter_noise(capture, method=filter, cutoff_hz=cutoff)
+    if resample is not None:
+        capture = timing.resample(capture, rate=resample)
+    if neutral == "auto":
+        index, report = neutral_mod.choose_neutral(capture)
+        capture = neutral_mod.set_neutral(capture, index, how="auto")
+        reports["neutral"] = report.summary()
+    elif neutral is not None:
+        capture = neutral_mod.set_neutral(capture, neutral, how="option")
+    if stabilize is not None:
+        from ..capture.stabilize import stabilize as stabilize_fn
+
+        markers = None if stabilize == "auto" else list(stabilize)
+        capture, report = stabilize_fn(capture, markers=markers)
+        reports["stabilize"] = report.summary()
+    if start_frame is not None:
+        capture = timing.offset(capture, start_frame=start_frame)
+    return capture, reports
+
+
+def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabilize=None, fill_gaps=None,
+                   filter=None, cutoff=8.0, trim=None, start_frame=None, resample=None, neutral=None) -> dict:
+    """Import and condition a capture; write the capture layer. Returns a summary dict."""
+    from ..usd.capture_layer import write_capture_layer
+
+    out = check_output_path(output)
+    if out.suffix.lower() not in (".usdc", ".usd", ".usda"):
+        raise OptionError(f"-o {out}: a capture layer is a .usdc (or .usd/.usda) file")
+    options = dict(units=units, rate=rate, up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
+                   filter=filter, cutoff=cutoff if filter else None, trim=trim, start_frame=start_frame,
+                   resample=resample, neutral=neutral)
+    capture = load_capture(input, units=units, rate=rate, up_axis=up_axis)
+    capture, reports = condition_capture(capture, trim=trim, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff,
+                                         resample=resample, neutral=neutral, stabilize=stabilize,
+                                         start_frame=start_frame)
+    prov = provenance("import-capture", options=options, inputs={"capture": input})
+    write_capture_layer(out, capture, prov=prov)
+    valid = capture.valid
+    summary = {
+        "output": str(out), "source": str(input), "markers": capture.n_markers, "frames": capture.n_frames,
+        "rate": capture.rate, "units": capture.units, "startTimeCode": capture.start_frame,
+        "neutralFrame": capture.neutral_frame, "invalidSamples": int((~valid).sum()),
+        "stabilized": capture.head_motion is not None, "reports": reports,
+    }
+    text = [f"wrote {out}: {capture.n_markers} markers, {capture.n_frames} frames at {capture.rate:g} Hz, "
+            f"units {capture.units}, {int((~valid).sum())} invalid samples, neutral frame {capture.neutral_frame}"]
+    st = reports.get("stabilize")
+    if st:
+        text.append(f"  stabilised on {', '.join(st.get('markers', []))}")
+        if "holdout" in st:
+            text.append(f"  residual rigid motion on held-out markers {', '.join(st['holdout'].get('markers', []))}: "
+                        f"{st['holdout'].get('before', {}).get('max_angle_deg', float('nan')):.2f} deg / "
+                        f"{st['holdout'].get('before', {}).get('max_translation', float('nan')):.2f} {capture.units} before, "
+                        f"{st['holdout'].get('after', {}).get('max_angle_deg', float('nan')):.2f} deg / "
+                        f"{st['holdout'].get('after', {}).get('max_translation', float('nan')):.2f} {capture.units} after")
+    if "gaps" in reports:
+        text.append(f"  gaps: {reports['gaps']}")
+    if "neutral" in reports:
+        text.append(f"  neutral: {reports['neutral']}")
+    for s in reports.get("swaps", []):
+        text.append(f"  possible marker swap: {s}")
+    summary["_text"] = text
+    return summary

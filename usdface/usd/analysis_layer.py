@@ -1,0 +1,172 @@
+"""Analysis layers (distance matrices) and animation layers (time-sampled points), and shot stages.
+
+Both layers are ``over``s on the mesh prim; a shot stage composes them over the binding layer
+(which itself sublayers the mesh and references the capture).
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+from ..errors import InputError
+from .layers import AtomicLayer, open_stage, relative_asset_path, set_provenance, set_stage_metadata
+from .mesh_layer import find_mesh
+from .schemas import require_registered
+
+DISTANCE_API = "FaceDistanceMatrixAPI"
+TRANSFER_API = "FaceTransferAPI"
+HYBRID_WEIGHT_PRIMVAR = "usdface:hybridWeight"
+
+
+@dataclass(frozen=True)
+class DistanceMatrix:
+    """A distance matrix as stored on the mesh.
+
+    Attributes
+    ----------
+    method : str  ("euclidean", "geodesic", "hybrid")
+    backend : str ("none", "graph", "heat", "exact")
+    marker_names : tuple of str, length M
+    constraint_vertices : ndarray (P,) int64
+    vertex_to_centre : ndarray (N, C) float32, C = M + P, mesh units
+    centre_to_centre : ndarray (C, C) float64 (row j uses centre j's hybrid weight)
+    parameters : dict
+    hybrid_weight : ndarray (N,) float32 or None
+    """
+
+    method: str
+    backend: str
+    marker_names: tuple
+    constraint_vertices: np.ndarray
+    vertex_to_centre: np.ndarray
+    centre_to_centre: np.ndarray
+    parameters: dict
+    hybrid_weight: np.ndarray | None = None
+
+
+def write_analysis_layer(path, matrices: list[DistanceMatrix], *, mesh_path, units, prov: dict) -> str:
+    """Write distance matrices as FaceDistanceMatrixAPI instances in an over on the mesh prim."""
+    require_registered()
+    mesh_stage = open_stage(mesh_path, what="mesh")
+    mesh_prim_path = find_mesh(mesh_stage).GetPath()
+    with AtomicLayer(path) as stage:
+        set_stage_metadata(stage, units=units, default_prim=mesh_stage.GetDefaultPrim().GetName())
+        prim = stage.OverridePrim(mesh_prim_path)
+        for m in matrices:
+            inst = m.method
+            prim.ApplyAPI(DISTANCE_API, inst)
+            ns = f"usdface:distanceMatrix:{inst}"
+            prim.GetAttribute(f"{ns}:markerNames").Set(Vt.StringArray(list(m.marker_names)))
+            prim.GetAttribute(f"{ns}:constraintVertices").Set(Vt.IntArray.FromNumpy(
+                np.asarray(m.constraint_vertices, dtype=np.int32)))
+            prim.GetAttribute(f"{ns}:method").Set(m.method)
+            prim.GetAttribute(f"{ns}:backend").Set(m.backend)
+            prim.GetAttribute(f"{ns}:centreDistances").Set(Vt.FloatArray.FromNumpy(
+                np.ascontiguousarray(m.centre_to_centre, dtype=np.float32).ravel()))
+            prim.GetAttribute(f"{ns}:parameters").Set(json.dumps(m.parameters, sort_keys=True, default=float))
+            pv = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(f"usdface:distance:{inst}", Sdf.ValueTypeNames.FloatArray,
+                                                         UsdGeom.Tokens.vertex, m.vertex_to_centre.shape[1])
+            pv.Set(Vt.FloatArray.FromNumpy(np.ascontiguousarray(m.vertex_to_centre, dtype=np.float32).ravel()))
+            if m.hybrid_weight is not None:
+                w = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(HYBRID_WEIGHT_PRIMVAR, Sdf.ValueTypeNames.FloatArray,
+                                                            UsdGeom.Tokens.vertex)
+                w.Set(Vt.FloatArray.FromNumpy(np.asarray(m.hybrid_weight, dtype=np.float32)))
+        set_provenance(stage, prov)
+    return str(path)
+
+
+def read_distance_matrix(path, *, method: str | None = None, stage: Usd.Stage | None = None) -> DistanceMatrix:
+    """Read one distance matrix (``method`` or the only/first one) from an analysis layer."""
+    stage = stage or open_stage(path, what="analysis")
+    prim = find_mesh(stage, what="analysis")
+    instances = [s.split(":", 1)[1] for s in prim.GetAppliedSchemas() if s.startswith(DISTANCE_API + ":")]
+    if not instances:
+        raise InputError(f"analysis {path}: {prim.GetPath()} has no {DISTANCE_API} (write one with `usdface distances`)")
+    inst = method or instances[0]
+    if inst not in instances:
+        raise InputError(f"analysis {path}: no {inst!r} distance matrix; it has {', '.join(instances)}")
+    ns = f"usdface:distanceMatrix:{inst}"
+    names = tuple(prim.GetAttribute(f"{ns}:markerNames").Get() or [])
+    cons = np.asarray(prim.GetAttribute(f"{ns}:constraintVertices").Get() or [], dtype=np.int64)
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{inst}")
+    c = pv.GetElementSize()
+    vtc = np.asarray(pv.Get(), dtype=np.float32).reshape(-1, c)
+    ctc = np.asarray(prim.GetAttribute(f"{ns}:centreDistances").Get(), dtype=np.float64).reshape(c, c)
+    w = UsdGeom.PrimvarsAPI(prim).GetPrimvar(HYBRID_WEIGHT_PRIMVAR)
+    return DistanceMatrix(method=prim.GetAttribute(f"{ns}:method").Get(), backend=prim.GetAttribute(f"{ns}:backend").Get(),
+                          marker_names=names, constraint_vertices=cons, vertex_to_centre=vtc, centre_to_centre=ctc,
+                          parameters=json.loads(prim.GetAttribute(f"{ns}:parameters").Get() or "{}"),
+                          hybrid_weight=np.asarray(w.Get(), dtype=np.float32) if w and w.HasValue() else None)
+
+
+def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, start: float, rate: float,
+                          n_frames: int, units, transfer: dict, prov: dict, progress=None) -> str:
+    """Stream time-sampled points into an animation layer (.usdc), saving after every chunk.
+
+    Parameters
+    ----------
+    chunks : iterable of (slice, ndarray (f, N, 3) float32)
+        Vertex displacements for frames ``slice`` (0-based), in mesh units.
+    rest_points : ndarray (N, 3)
+        The mesh's rest positions; authored points = rest + displacement.
+    transfer : dict
+        FaceTransferAPI values: mode, kernel, distanceMethod, markerNames, widths, regularization,
+        polynomial, conditionNumber, parameters (dict).
+    """
+    require_registered()
+    mesh_stage = open_stage(mesh_path, what="mesh")
+    mesh_prim_path = find_mesh(mesh_stage).GetPath()
+    rest = np.asarray(rest_points, dtype=np.float32)
+    with AtomicLayer(path) as stage:
+        set_stage_metadata(stage, units=units, default_prim=mesh_stage.GetDefaultPrim().GetName(), rate=rate,
+                           start=start, end=start + n_frames - 1)
+        prim = stage.OverridePrim(mesh_prim_path)
+        mesh = UsdGeom.Mesh(prim)
+        prim.ApplyAPI(TRANSFER_API)
+        ns = "usdface:transfer"
+        for key in ("mode", "kernel", "distanceMethod"):
+            prim.GetAttribute(f"{ns}:{key}").Set(transfer[key])
+        prim.GetAttribute(f"{ns}:markerNames").Set(Vt.StringArray(list(transfer["markerNames"])))
+        prim.GetAttribute(f"{ns}:widths").Set(Vt.DoubleArray.FromNumpy(np.asarray(transfer["widths"], dtype=np.float64)))
+        prim.GetAttribute(f"{ns}:regularization").Set(float(transfer.get("regularization", 0.0)))
+        prim.GetAttribute(f"{ns}:polynomial").Set(bool(transfer.get("polynomial", False)))
+        cond = transfer.get("conditionNumber")
+        if cond is not None and np.isfinite(cond):
+            prim.GetAttribute(f"{ns}:conditionNumber").Set(float(cond))
+        prim.GetAttribute(f"{ns}:parameters").Set(json.dumps(transfer.get("parameters", {}), sort_keys=True, default=str))
+        # normals would go stale under animated points: block them (renderers recompute)
+        mesh.GetNormalsAttr().Block() if prim.HasAttribute("normals") else mesh.CreateNormalsAttr().Block()
+        points_attr = mesh.CreatePointsAttr()
+        extent_attr = mesh.CreateExtentAttr()
+        layer = stage.GetRootLayer()
+        written = 0
+        for frames, disp in chunks:
+            pts = disp + rest[None]
+            lo, hi = pts.min(axis=1), pts.max(axis=1)
+            for k, f in enumerate(range(frames.start, frames.stop)):
+                t = Usd.TimeCode(start + f)
+                points_attr.Set(Vt.Vec3fArray.FromNumpy(pts[k]), t)
+                extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*lo[k].tolist()), Gf.Vec3f(*hi[k].tolist())]), t)
+            written += frames.stop - frames.start
+            layer.Save()  # appends in place: memory stays flat on long takes
+            if progress is not None:
+                progress.update(frames.stop - frames.start)
+        if written != n_frames:
+            raise InputError(f"animation {path}: {written} frames computed, expected {n_frames}")
+        set_provenance(stage, prov)
+    return str(path)
+
+
+def write_shot_stage(path, *, layers: list, capture_path=None, rate: float, start: float, end: float, units,
+                     default_prim: str = "Face") -> str:
+    """A small .usda composing the given layers (strongest first) with relative asset paths."""
+    with AtomicLayer(path) as stage:
+        root = stage.GetRootLayer()
+        for layer in layers:
+            root.subLayerPaths.append(relative_asset_path(layer, path))
+        set_stage_metadata(stage, units=units, default_prim=default_prim, rate=rate, start=start, end=end)
+    return str(path)
