@@ -25,8 +25,9 @@ def test_every_schema_applies_on_a_fresh_stage():
     stage = Usd.Stage.CreateInMemory()
     points = UsdGeom.Points.Define(stage, "/P").GetPrim()
     mesh = UsdGeom.Mesh.Define(stage, "/M").GetPrim()
+    curves = UsdGeom.BasisCurves.Define(stage, "/C").GetPrim()
     for type_name, token in API_SCHEMAS.items():
-        prim = points if token == "FaceMarkerSetAPI" else mesh
+        prim = {"FaceMarkerSetAPI": points, "FaceMuscleAPI": curves}.get(token, mesh)
         if token in MULTIPLE_APPLY:
             assert prim.ApplyAPI(token, "inst"), token
             assert prim.HasAPI(token, "inst")

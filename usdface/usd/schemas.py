@@ -23,6 +23,7 @@ API_SCHEMAS = {
     "UsdFaceRegionAPI": "FaceRegionAPI",
     "UsdFaceDistanceMatrixAPI": "FaceDistanceMatrixAPI",
     "UsdFaceTransferAPI": "FaceTransferAPI",
+    "UsdFaceMuscleAPI": "FaceMuscleAPI",
 }
 MULTIPLE_APPLY = {"FaceRegionAPI", "FaceDistanceMatrixAPI"}
 
