@@ -178,6 +178,17 @@ def _cmd_plugin_path(args) -> dict:
     return {"_text": [str(plugin_path())], "path": str(plugin_path())}
 
 
+#: processor modules that add their own subcommands with ``register_cli(subparsers)``; each
+#: subcommand's ``func(args) -> dict`` returns the summary (``_text`` lines, ``_exit`` code)
+PLUGIN_COMMANDS = (
+)
+
+
+def add_common_options(p: argparse.ArgumentParser) -> None:
+    """--json, -v, -q: every subcommand has them."""
+    _add_common(p)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="usdface",
@@ -186,6 +197,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"usdface {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     _add_subcommands(sub)
+    import importlib
+
+    for module in PLUGIN_COMMANDS:
+        importlib.import_module(module).register_cli(sub)
     return parser
 
 
