@@ -1,0 +1,218 @@
+"""C3D marker files (reader and writer), through ezc3d.
+
+What is read: the 3D points (``POINT`` group), named by ``POINT:LABELS`` (and ``LABELS2``... for
+more than 255 points), at ``POINT:RATE`` Hz, in ``POINT:UNITS`` (``mm`` usually). A sample whose
+residual is negative (the C3D "invalid" flag) or whose coordinates are NaN is invalid (NaN).
+Analog channels, force plates and events are ignored. The capture's ``start_frame`` is the
+header's first frame, 0-based (C3D frame 1 is time code 0).
+
+Axes: C3D data is Z-up by convention, so the reader rotates it to usdface's Y-up as
+(x, y, z) -> (x, z, -y) unless ``up_axis="Y"`` says the file is already Y-up. The writer applies
+the inverse rotation (x, y, z) -> (x, -z, y), so writing then reading gives the same capture.
+
+Precision: C3D stores floating-point coordinates as float32, so a round trip keeps about 7
+significant digits (1e-5 cm on face-sized coordinates).
+
+The reader also checks that the file holds all the frames its header announces (ezc3d reads a
+truncated data section without complaint).
+"""
+from __future__ import annotations
+
+import os
+import struct
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..capture.model import Capture
+from ..errors import FormatError, MarkerError
+from .captures import (
+    check_input_file, check_up_axis, resolve_rate, resolve_units, unit_from_text, y_up_to_z_up, z_up_to_y_up,
+)
+
+__all__ = ["read_c3d", "write_c3d"]
+
+
+def _ezc3d():
+    try:
+        import ezc3d
+    except ImportError:  # pragma: no cover - ezc3d is a declared dependency
+        raise ImportError("reading or writing C3D files needs ezc3d: pip install ezc3d") from None
+    return ezc3d
+
+
+def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_axis: str | None = "Z") -> Capture:
+    """Read the 3D marker points of a ``.c3d`` file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.c3d`` file.
+    units : str, optional
+        Needed only when ``POINT:UNITS`` is missing or empty; must agree with it otherwise.
+    rate : float, optional
+        Needed only when ``POINT:RATE`` is missing; must agree with it otherwise (Hz).
+    up_axis : {"Z", "Y"}, optional
+        Up axis of the file's data; default Z (the C3D convention), rotated to Y-up.
+
+    Returns
+    -------
+    Capture
+        positions (F, M, 3) float64 in the file's units, Y-up, NaN where the residual is negative;
+        history ({"step": "read", "format": "c3d", "up_axis": ...},).
+
+    Raises
+    ------
+    InputError, FormatError, MarkerError, OptionError
+        See :func:`usdface.io.captures.read_capture`.
+    """
+    source = os.fspath(path)
+    up = check_up_axis(up_axis) or "Z"
+    file = check_input_file(path)
+    ezc3d = _ezc3d()
+    try:
+        c3d = ezc3d.c3d(str(file))
+    except Exception as exc:  # ezc3d raises OSError/RuntimeError with its own wording
+        raise FormatError(f"{source}: not a readable C3D file ({exc})") from None
+
+    parameters = c3d["parameters"]
+    point = parameters.get("POINT", {}) if hasattr(parameters, "get") else parameters["POINT"]
+    points = np.asarray(c3d["data"]["points"], dtype=np.float64)  # (4, M, F)
+    if points.ndim != 3 or points.shape[1] == 0:
+        raise MarkerError(f"{source}: the file has zero 3D points (markers)")
+    n_markers, n_frames = points.shape[1], points.shape[2]
+    if n_frames == 0:
+        raise MarkerError(f"{source}: the file has zero frames")
+    _check_complete(c3d, file, source, n_markers, n_frames)
+
+    labels = _labels(point)
+    if len(labels) < n_markers:
+        raise FormatError(f"{source}: POINT:LABELS names {len(labels)} points but the data has {n_markers}")
+    labels = labels[:n_markers]
+    if any(not name for name in labels):
+        raise FormatError(f"{source}: POINT:LABELS has an empty label (point {labels.index('') + 1})")
+
+    declared_rate = None
+    if "RATE" in point and len(point["RATE"]["value"]) and float(point["RATE"]["value"][0]) > 0:
+        declared_rate = float(point["RATE"]["value"][0])
+    elif c3d["header"]["points"]["frame_rate"] > 0:
+        declared_rate = float(c3d["header"]["points"]["frame_rate"])
+    declared_unit = None
+    if "UNITS" in point and len(point["UNITS"]["value"]) and str(point["UNITS"]["value"][0]).strip():
+        text = str(point["UNITS"]["value"][0]).strip()
+        declared_unit = unit_from_text(text)
+        if declared_unit is None:
+            raise FormatError(f"{source}: POINT:UNITS {text!r} is not a unit usdface knows (mm, cm, m, in, ft)")
+    unit = resolve_units(declared_unit, units, source=source)
+    capture_rate = resolve_rate(declared_rate, rate, source=source)
+
+    positions = points[:3].transpose(2, 1, 0).copy()  # (F, M, 3)
+    residuals = np.asarray(c3d["data"]["meta_points"]["residuals"])
+    invalid = ~np.isfinite(positions).all(axis=2)
+    if residuals.shape == (1, n_markers, n_frames):
+        invalid |= residuals[0].T < 0
+    positions[invalid] = np.nan
+    if up == "Z":
+        positions = z_up_to_y_up(positions)
+    capture = Capture(
+        names=tuple(labels), positions=positions, rate=capture_rate, units=unit,
+        start_frame=int(c3d["header"]["points"]["first_frame"]), source=source,
+        history=({"step": "read", "format": "c3d", "up_axis": up},),
+    )
+    capture.check_not_all_invalid()
+    return capture
+
+
+def write_c3d(path, capture: Capture) -> None:
+    """Write ``capture`` as a ``.c3d`` file (float32 points, Z-up by the C3D convention).
+
+    Invalid samples get residual -1; valid ones residual 0. ``POINT:UNITS`` is the capture's
+    unit (empty when unknown); the header's first frame is ``capture.start_frame`` (0-based).
+    The file is written to a temporary name in the same folder and renamed into place.
+    """
+    ezc3d = _ezc3d()
+    if not 0 <= capture.start_frame < 65535:
+        raise FormatError(f"cannot write {os.fspath(path)}: C3D cannot store start frame {capture.start_frame}")
+    c3d = ezc3d.c3d()
+    point = c3d["parameters"]["POINT"]
+    point["RATE"]["value"] = [float(capture.rate)]
+    point["LABELS"]["value"] = list(capture.names)
+    point["UNITS"]["value"] = [capture.units or ""]
+    data = np.ones((4, capture.n_markers, capture.n_frames))
+    valid = capture.valid
+    z_up = np.where(valid[..., None], y_up_to_z_up(capture.positions), 0.0)
+    data[:3] = z_up.transpose(2, 1, 0)
+    c3d["data"]["points"] = data
+    c3d["data"]["meta_points"]["residuals"] = np.where(valid.T, 0.0, -1.0)[None]
+    c3d["header"]["points"]["first_frame"] = int(capture.start_frame)
+
+    target = Path(os.fspath(path))
+    # ezc3d appends ".c3d" unless the name ends with it (case-sensitively): write a temp name it
+    # accepts, then rename, which also makes the write atomic.
+    handle, temp = tempfile.mkstemp(suffix=".c3d", prefix=".tmp-", dir=target.parent or ".")
+    os.close(handle)
+    try:
+        c3d.write(temp)
+        os.replace(temp, target)
+        os.chmod(target, 0o644)
+    finally:
+        if os.path.exists(temp):
+            os.unlink(temp)
+
+
+def _labels(point) -> list[str]:
+    labels = [str(s).strip() for s in point["LABELS"]["value"]] if "LABELS" in point else []
+    i = 2
+    while f"LABELS{i}" in point:
+        labels += [str(s).strip() for s in point[f"LABELS{i}"]["value"]]
+        i += 1
+    return labels
+
+
+def _header_frame_count(file: Path) -> int | None:
+    """Number of frames the file's 512-byte header announces, or None if it cannot tell.
+
+    ezc3d shortens ``last_frame`` to the frames actually present, so a truncated file is only
+    visible in the raw header: words 4-5 hold the first and last frame (1-based, 16-bit), in the
+    byte order given by the processor type (byte 4 of the parameter section: 84 Intel, 85 DEC,
+    86 MIPS big-endian).
+    """
+    try:
+        with open(file, "rb") as handle:
+            header = handle.read(512)
+            parameter_block = header[0]
+            handle.seek(max(parameter_block - 1, 0) * 512)
+            parameter_head = handle.read(4)
+    except OSError:
+        return None
+    if len(header) < 512 or len(parameter_head) < 4 or header[1] != 0x50:
+        return None
+    byte_order = ">" if parameter_head[3] == 86 else "<"
+    first, last = struct.unpack(byte_order + "HH", header[6:10])
+    if last == 65535 or last < first:  # long trials keep the real count elsewhere (TRIAL group)
+        return None
+    return last - first + 1
+
+
+def _check_complete(c3d, file: Path, source: str, n_markers: int, n_frames: int) -> None:
+    """FormatError if the file holds fewer frames than its header announces."""
+    announced = _header_frame_count(file)
+    if announced is not None and announced > n_frames:
+        raise FormatError(f"{source}: the header announces {announced} frames but the file holds only "
+                          f"{n_frames}: it is truncated")
+    point = c3d["parameters"]["POINT"]
+    try:
+        data_start = int(point["DATA_START"]["value"][0])
+        scale = float(point["SCALE"]["value"][0])
+    except (KeyError, IndexError, TypeError, ValueError):
+        return
+    analogs = np.asarray(c3d["data"]["analogs"])
+    analog_values_per_frame = analogs.size // n_frames if analogs.size else 0
+    word = 4 if scale < 0 else 2
+    frames = max(n_frames, announced or 0)
+    needed = (data_start - 1) * 512 + frames * word * (4 * n_markers + analog_values_per_frame)
+    size = file.stat().st_size
+    if size < needed:
+        raise FormatError(f"{source}: the header announces {frames} frames of {n_markers} points "
+                          f"({needed} bytes) but the file has {size} bytes: it is truncated")

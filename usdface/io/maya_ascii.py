@@ -1,0 +1,681 @@
+"""Maya ASCII (``.ma``) reader for marker motion capture baked to animation curves.
+
+What is a marker
+----------------
+Every DAG ``transform`` (or ``joint``) with at least one translate channel (``tx``/``ty``/``tz``,
+or ``translateX``...) driven by a time-input animation curve (``animCurveTL``, ``animCurveTU``)
+through ``connectAttr "<curve>.o" "<node>.tx"``. Curves are found through those connections, never
+by name (AnimFace's ``Rcheek_Up`` is driven by ``Rcheek_up_translate*``). Markers are named by the
+node's short name and ordered as the nodes are created in the file. A translate channel without a
+curve keeps its static ``setAttr`` value (``.t``, ``.tx``...; 0 if never set).
+
+Positions
+---------
+World positions: each marker's translate is carried through its ancestors' local transforms
+(translate, rotate with ``.ro`` rotate order, scale; static or, for translate, animated), e.g.
+the ``MoCapData`` group offset of AnimFace's ``NoseMoCap.ma``. An ancestor with pivots, shear,
+rotate axis or joint orient, or with animated rotate/scale, is rejected (FormatError) rather than
+evaluated approximately. The marker's own rotate/scale do not move its origin and are ignored.
+Positions stay in the scene's linear unit (``currentUnit -l``; Maya's default is cm), Y-up.
+
+Time
+----
+Key times are in the scene's time unit (``currentUnit -t``: game=15, film=24, pal=25, ntsc=30,
+show=48, palf=50, ntscf=60 fps, millisec, sec, min, hour, or ``<N>fps``; default film). The capture
+rate is the most common key spacing (AnimFace: a key every 0.4 film frame = 60 Hz), snapped to an integer or
+NTSC (N/1.001) rate when within 1e-4, unless ``rate`` is given. Frames lie on a regular grid at
+that rate starting at the earliest key; a key that falls on the grid (within 1e-3 frame) is
+copied exactly, grid frames between a curve's keys are linearly interpolated (Maya's tangents are
+not evaluated; the history step counts such samples), and frames outside a curve's key range are
+invalid (NaN). When the first key is not on a whole frame of the rate, the capture starts at the
+nearest frame and the history records the offset in seconds.
+
+Robustness
+----------
+Statements must end with ``;`` and the file with Maya's ``// End of <name>.ma`` line; key blocks
+(``setAttr ".ktv[a:b]" t0 v0 t1 v1 ...``) must hold exactly their index range and the count
+declared by ``setAttr -s N ".ktv"``. A truncated or malformed file raises FormatError naming the
+file, line and curve instead of returning short data.
+
+Speed
+-----
+One regex pass finds statement starts (a few thousand statements; no per-key Python work), and the
+key text of all curves is converted in one ``numpy.fromstring`` call.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..capture.model import Capture
+from ..errors import FormatError, MarkerError, OptionError
+from ..errors import list_names
+from .captures import check_rate_option, read_text, resolve_units
+
+__all__ = ["read_maya_ascii", "MAYA_TIME_UNITS", "MAYA_LINEAR_UNITS"]
+
+#: Maya time unit names -> frames per second
+MAYA_TIME_UNITS = {
+    "game": 15.0, "film": 24.0, "pal": 25.0, "ntsc": 30.0, "show": 48.0, "palf": 50.0, "ntscf": 60.0,
+    "millisec": 1000.0, "sec": 1.0, "min": 1.0 / 60.0, "hour": 1.0 / 3600.0,
+}
+
+#: Maya linear unit names (long and short) -> usdface unit names
+MAYA_LINEAR_UNITS = {
+    "millimeter": "mm", "mm": "mm", "centimeter": "cm", "cm": "cm", "meter": "m", "m": "m",
+    "inch": "in", "in": "in", "foot": "ft", "ft": "ft",
+}
+
+# A statement starts at a line start with a command word. Maya indents continuation lines, and
+# their only possible leading words are boolean values, which are excluded.
+_STATEMENT_START = re.compile(r"\n[ \t]*(?!(?:yes|no|on|off|true|false)\b)([A-Za-z_]\w*)")
+_QUOTED = re.compile(r'"((?:[^"\\\n]|\\.)*)"')
+_NODE_TYPE = re.compile(r"\s*(\w+)")
+_NAME_FLAG = re.compile(r'-n(?:ame)?\s+"([^"]*)"')
+_PARENT_FLAG = re.compile(r'-p(?:arent)?\s+"([^"]*)"')
+_SIZE_FLAG = re.compile(r"-s(?:ize)?\s+(\d+)")
+_SELECT_NAME = re.compile(r'-ne\s+"?([^";\s]+)"?')
+_INDEX = re.compile(r"\[(\d+)(?::(\d+))?\]$")
+_TYPE_FLAG = re.compile(r'^\s*-type\s+"[^"]*"')
+_LINEAR_FLAG = re.compile(r"-l(?:inear)?\s+\"?(\w+)")
+_ANGLE_FLAG = re.compile(r"-a(?:ngle)?\s+\"?(\w+)")
+_TIME_FLAG = re.compile(r"-t(?:ime)?\s+\"?([\w.]+)")
+_FPS = re.compile(r"(\d+(?:\.\d+)?)fps$")
+
+_KEY_ATTRS = (".ktv", ".keyTimeValue")
+# attribute spellings -> canonical short name, for the transform attributes that place a point
+_XFORM_ATTRS = {}
+for _short, _long in (("t", "translate"), ("r", "rotate"), ("s", "scale")):
+    _XFORM_ATTRS[_short] = _XFORM_ATTRS[_long] = _short
+    for _axis in "xyz":
+        _XFORM_ATTRS[_short + _axis] = _XFORM_ATTRS[_long + _axis.upper()] = _short + _axis
+for _short, _long in (("ro", "rotateOrder"), ("rp", "rotatePivot"), ("sp", "scalePivot"),
+                      ("rpt", "rotatePivotTranslate"), ("spt", "scalePivotTranslate"),
+                      ("ra", "rotateAxis"), ("sh", "shear"), ("jo", "jointOrient")):
+    _XFORM_ATTRS[_short] = _XFORM_ATTRS[_long] = _short
+_TRANSLATE_CHANNELS = ("tx", "ty", "tz")
+_DAG_XFORM_TYPES = ("transform", "joint")
+_TIME_CURVE_TYPES = ("animCurveTL", "animCurveTU")
+# attributes that must be at their defaults on an ancestor, with those defaults
+_UNSUPPORTED_ANCESTOR_ATTRS = {"rp": 0.0, "sp": 0.0, "rpt": 0.0, "spt": 0.0, "ra": 0.0, "sh": 0.0, "jo": 0.0}
+# Maya rotate orders (.ro): the axis applied first comes first
+_ROTATE_ORDERS = ("xyz", "yzx", "zxy", "xzy", "yxz", "zyx")
+_ON_GRID_TOLERANCE = 1e-3  # frames
+
+
+@dataclass
+class _Node:
+    kind: str
+    name: str
+    path: str
+    pos: int                                          # text position of its createNode
+    parent: "_Node | None" = None
+    static: dict = field(default_factory=dict)       # canonical attr -> list of floats
+    key_blocks: list = field(default_factory=list)   # (first, last, value_start, value_end, line)
+    declared_keys: int | None = None
+
+
+@dataclass
+class _Scene:
+    """What the reader keeps from a Maya ASCII file."""
+
+    source: str
+    text: str
+    nodes: list = field(default_factory=list)
+    by_name: dict = field(default_factory=dict)      # short name -> [nodes]
+    by_path: dict = field(default_factory=dict)      # DAG path -> node
+    connections: list = field(default_factory=list)  # (src, dst, line)
+    linear_unit: str = "centimeter"
+    angle_unit: str = "degree"
+    time_unit: str = "film"
+    drivers: dict | None = None                      # built by _driver_index
+
+    def line_of(self, pos: int) -> int:
+        return self.text.count("\n", 0, pos) + 1
+
+    def error(self, line: int | None, message: str) -> FormatError:
+        where = f"{self.source}, line {line}" if line else self.source
+        return FormatError(f"{where}: {message}")
+
+    def find(self, name: str, pos: int) -> _Node | None:
+        """Resolve a node name as Maya writes it: short name, partial or full DAG path.
+        ``pos`` (text position of the statement) is only used for the error message."""
+        if name.startswith("|"):
+            return self.by_path.get(name)
+        short = name.rsplit("|", 1)[-1]
+        candidates = self.by_name.get(short, [])
+        if "|" in name:
+            candidates = [n for n in candidates if n.path.endswith("|" + name)]
+        if len(candidates) > 1:
+            raise self.error(self.line_of(pos), f"node name {name!r} is ambiguous: {list_names(n.path for n in candidates)}")
+        return candidates[0] if candidates else None
+
+
+def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None) -> Capture:
+    """Read marker motion from a Maya ASCII scene whose markers are transforms animated by curves.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.ma`` file.
+    units : str, optional
+        Expected linear unit (``"cm"``...). The scene's ``currentUnit -l`` is used; giving a
+        different unit is an OptionError (positions are never rescaled).
+    rate : float, optional
+        Capture rate in Hz of the output grid. Default: inferred from the key spacing.
+
+    Returns
+    -------
+    Capture
+        ``positions`` (F, M, 3) float64 world positions in the scene's linear unit, Y-up, NaN
+        outside a curve's key range; ``rate`` in Hz; ``start_frame`` = time code of the earliest
+        key at ``rate``; ``history`` = ({"step": "read", "format": "maya_ascii", "time_unit",
+        "key_rate", "interpolated_samples", "time_offset_seconds", "markers"},).
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file.
+    FormatError
+        Not a Maya ASCII file, truncated (statement without ``;``, missing ``// End of`` line,
+        fewer keys than declared), malformed key blocks, unsupported units or transforms.
+    MarkerError
+        No animated transform, duplicate marker names, a marker without any valid sample.
+    OptionError
+        ``units`` contradicting the scene, a non-positive ``rate``.
+
+    Notes
+    -----
+    See the module docstring for the exact rules (markers, hierarchy, time grid).
+    """
+    source = os.fspath(path)
+    rate = check_rate_option(rate)
+    text = read_text(path)
+    scene = _parse_statements(text, source)
+    unit = MAYA_LINEAR_UNITS.get(scene.linear_unit)
+    if unit is None:
+        raise scene.error(None, f"linear unit {scene.linear_unit!r} (currentUnit -l) is not supported; "
+                                f"supported: millimeter, centimeter, meter, inch, foot")
+    unit = resolve_units(unit, units, source=source)
+    frames_per_second = _time_unit_fps(scene)
+
+    markers, channel_curves = _find_markers(scene)
+    if not markers:
+        raise MarkerError(
+            f"{source}: no marker found: no transform has a translate channel (tx/ty/tz) driven by an "
+            f"animCurveTL through connectAttr \"<curve>.o\" \"<node>.tx\""
+        )
+    ancestors = _ancestor_chains(scene, markers)
+    for node in {id(a): a for chain in ancestors for a in chain}.values():
+        _check_ancestor(scene, node)
+        for channel in _TRANSLATE_CHANNELS:
+            curve = _driver_curve(scene, node, channel)
+            if curve is not None:
+                channel_curves[(id(node), channel)] = curve
+    curves = list({id(c): c for c in channel_curves.values()}.values())
+    keys = _parse_keys(scene, curves)  # id(curve) -> (times in Maya time units, values)
+
+    grid = _TimeGrid.fit(scene, keys, frames_per_second, rate)
+    sampled = {cid: grid.sample(times, values) for cid, (times, values) in keys.items()}
+
+    def local_translate(node):
+        """(F, 3) or (3,) translate of one node: curves where driven, else static values."""
+        static = _static_translate(node)
+        columns = []
+        animated = False
+        for axis, channel in enumerate(_TRANSLATE_CHANNELS):
+            curve = channel_curves.get((id(node), channel))
+            if curve is None:
+                columns.append(np.full(grid.n_frames, static[axis]))
+            else:
+                columns.append(sampled[id(curve)])
+                animated = True
+        return np.stack(columns, axis=1) if animated else static
+
+    positions = np.empty((grid.n_frames, len(markers), 3))
+    for m, (node, chain) in enumerate(zip(markers, ancestors)):
+        p = np.broadcast_to(local_translate(node), (grid.n_frames, 3))
+        for parent in chain:
+            linear = _static_linear(scene, parent)
+            if linear is not None:
+                p = p @ linear.T
+            p = p + local_translate(parent)
+        positions[:, m] = p
+    # A sample is invalid as a whole when any of its coordinates is missing.
+    positions[~np.isfinite(positions).all(axis=2)] = np.nan
+
+    step = {
+        "step": "read",
+        "format": "maya_ascii",
+        "time_unit": scene.time_unit,
+        "key_rate": grid.key_rate,
+        "interpolated_samples": int(grid.interpolated_samples),
+        "time_offset_seconds": grid.time_offset_seconds,
+        "markers": len(markers),
+    }
+    capture = Capture(
+        names=tuple(n.name for n in markers),
+        positions=positions,
+        rate=grid.rate,
+        units=unit,
+        start_frame=grid.start_frame,
+        source=source,
+        history=(step,),
+    )
+    capture.check_not_all_invalid()
+    return capture
+
+
+# -- statements --------------------------------------------------------------------------------
+
+def _parse_statements(text: str, source: str) -> _Scene:
+    """One pass over the statements, keeping nodes, static transform values, key block spans,
+    connections and units. Key numbers are NOT converted here."""
+    scene = _Scene(source=source, text=text)
+    if not text.startswith("//Maya ASCII"):
+        raise scene.error(1, "not a Maya ASCII file (the first line must start with '//Maya ASCII')")
+    starts = [(m.start() + 1, m.end(), m.group(1)) for m in _STATEMENT_START.finditer(text)]
+    ends = [s for s, _, _ in starts[1:]] + [len(text)]
+    current: _Node | None = None
+    for (stmt_start, args_start, command), end in zip(starts, ends):
+        if not _is_terminated(text, args_start, end):
+            line = scene.line_of(stmt_start)
+            head = text[stmt_start:min(end, stmt_start + 60)].split("\n", 1)[0]
+            raise scene.error(line, f"statement '{head.strip()}...' is not terminated by ';': "
+                                    f"the file is truncated or malformed")
+        if command == "setAttr":
+            if current is not None:
+                _set_attr(scene, current, args_start, end, stmt_start)
+        elif command == "createNode":
+            current = _create_node(scene, text[args_start:end], stmt_start)
+        elif command == "connectAttr":
+            names = _QUOTED.findall(text, args_start, end)
+            if len(names) >= 2:
+                scene.connections.append((names[0], names[1], stmt_start))
+        elif command == "select":
+            m = _SELECT_NAME.search(text, args_start, end)
+            current = scene.find(m.group(1), stmt_start) if m else None
+        elif command == "currentUnit":
+            args = text[args_start:end]
+            for regex, attr in ((_LINEAR_FLAG, "linear_unit"), (_ANGLE_FLAG, "angle_unit"), (_TIME_FLAG, "time_unit")):
+                m = regex.search(args)
+                if m:
+                    setattr(scene, attr, m.group(1))
+    _check_footer(scene)  # after the loop, so that a cut statement is reported as such
+    return scene
+
+
+def _check_footer(scene: _Scene) -> None:
+    tail = scene.text[-4096:].rstrip()
+    last_line = tail.rsplit("\n", 1)[-1].strip()
+    if not last_line.startswith("// End of"):
+        raise scene.error(
+            scene.line_of(len(scene.text.rstrip())),
+            "the file does not end with Maya's '// End of <name>.ma' line: it is truncated "
+            "(or was not written completely)",
+        )
+
+
+def _is_terminated(text: str, start: int, end: int) -> bool:
+    """True if the statement text[start:end] ends with ';' (ignoring trailing comment lines)."""
+    j = end
+    while j > start and text[j - 1] in " \t\r\n":
+        j -= 1
+    if j > start and text[j - 1] == ";":
+        return True
+    lines = text[start:end].split("\n")
+    while lines and (not lines[-1].strip() or lines[-1].lstrip().startswith("//")):
+        lines.pop()
+    return bool(lines) and lines[-1].rstrip().endswith(";")
+
+
+def _create_node(scene: _Scene, args: str, pos: int) -> _Node:
+    kind = _NODE_TYPE.match(args)
+    name = _NAME_FLAG.search(args)
+    if not kind or not name:
+        raise scene.error(scene.line_of(pos), f"createNode without a type and -n name: {args.strip()[:60]!r}")
+    parent_match = _PARENT_FLAG.search(args)
+    parent = None
+    if parent_match:
+        parent = scene.find(parent_match.group(1), pos)
+        if parent is None:
+            raise scene.error(scene.line_of(pos), f"parent {parent_match.group(1)!r} of node {name.group(1)!r} is not defined before it")
+        path = parent.path + "|" + name.group(1)
+    else:
+        path = "|" + name.group(1)
+    node = _Node(kind=kind.group(1), name=name.group(1), path=path, pos=pos, parent=parent)
+    scene.nodes.append(node)
+    scene.by_name.setdefault(node.name, []).append(node)
+    if node.kind in _DAG_XFORM_TYPES or parent is not None:
+        scene.by_path[path] = node
+    return node
+
+
+def _set_attr(scene: _Scene, node: _Node, start: int, end: int, pos: int) -> None:
+    text = scene.text
+    q1 = text.find('"', start, end)
+    q2 = text.find('"', q1 + 1, end) if q1 >= 0 else -1
+    if q2 < 0:
+        return  # setAttr without a quoted attribute: nothing usdface reads
+    attr = text[q1 + 1:q2]
+    if not attr.startswith("."):
+        # "node.attr": an attribute of a named node rather than of the current one
+        node_name, _, rest = attr.partition(".")
+        node = scene.find(node_name, pos)
+        if node is None:
+            return
+        attr = "." + rest
+    if node.kind.startswith("animCurve") and attr.startswith(_KEY_ATTRS):
+        size = _SIZE_FLAG.search(text, start, q1)
+        if size:
+            node.declared_keys = int(size.group(1))
+        index = _INDEX.search(attr)
+        if index is None:
+            return
+        first = int(index.group(1))
+        last = int(index.group(2)) if index.group(2) is not None else first
+        semi = text.find(";", q2 + 1, end)
+        if last < first:
+            raise scene.error(scene.line_of(pos), f"curve {node.name!r}: key range {attr} is empty")
+        trailing = text[semi + 1:end].strip()
+        if trailing and not trailing.startswith("//"):
+            raise scene.error(scene.line_of(semi + 1), f"unexpected text after the key block of curve {node.name!r}: {trailing[:40]!r}")
+        node.key_blocks.append((first, last, q2 + 1, semi, pos))
+        return
+    canonical = _XFORM_ATTRS.get(attr[1:])
+    if canonical is None or node.kind not in _DAG_XFORM_TYPES:
+        return
+    semi = text.find(";", q2 + 1, end)
+    value_text = _TYPE_FLAG.sub("", text[q2 + 1:semi])
+    try:
+        node.static[canonical] = [float(v) for v in value_text.split()]
+    except ValueError:
+        raise scene.error(scene.line_of(pos), f"node {node.name!r}: cannot read {attr} value {value_text.strip()[:60]!r}") from None
+
+
+# -- markers, hierarchy ------------------------------------------------------------------------
+
+def _split_plug(plug: str) -> tuple[str, str]:
+    node, _, attr = plug.partition(".")
+    return node, attr
+
+
+def _driver_index(scene: _Scene) -> dict:
+    """(id(node), canonical attr) -> (source node or None, source plug, text position), built once."""
+    index = scene.drivers
+    if index is None:
+        index = {}
+        for src, dst, pos in scene.connections:
+            dst_node_name, dst_attr = _split_plug(dst)
+            canonical = _XFORM_ATTRS.get(dst_attr)
+            if canonical is None:
+                continue
+            dst_node = scene.find(dst_node_name, pos)
+            if dst_node is None:
+                continue
+            src_node = scene.find(_split_plug(src)[0], pos)
+            targets = [canonical + a for a in "xyz"] if canonical in ("t", "r", "s") else [canonical]
+            for target in targets:
+                index[(id(dst_node), target)] = (src_node, src, pos)
+        scene.drivers = index
+    return index
+
+
+def _driver_curve(scene: _Scene, node: _Node, channel: str) -> _Node | None:
+    """The time curve driving ``node.channel``; FormatError if something else drives it."""
+    driver = _driver_index(scene).get((id(node), channel))
+    if driver is None:
+        return None
+    src_node, src_plug, pos = driver
+    if src_node is not None and src_node.kind in _TIME_CURVE_TYPES and _split_plug(src_plug)[1] in ("o", "output"):
+        return src_node
+    what = f"a {src_node.kind} node" if src_node is not None else "an unknown node"
+    raise scene.error(scene.line_of(pos), f"{node.name}.{channel} is driven by {src_plug!r} ({what}); only animation "
+                            f"curves ({', '.join(_TIME_CURVE_TYPES)}) can be read")
+
+
+def _find_markers(scene: _Scene) -> tuple[list, dict]:
+    drivers = _driver_index(scene)
+    markers, channel_curves = [], {}
+    for node in scene.nodes:
+        if node.kind not in _DAG_XFORM_TYPES:
+            continue
+        driven = [c for c in _TRANSLATE_CHANNELS if (id(node), c) in drivers]
+        curves = {}
+        for channel in driven:
+            src_node = drivers[(id(node), channel)][0]
+            if src_node is not None and src_node.kind in _TIME_CURVE_TYPES:
+                curves[channel] = src_node
+        if not curves:
+            continue
+        for channel in driven:  # every driven channel of a marker must be a readable curve
+            curves[channel] = _driver_curve(scene, node, channel)
+        markers.append(node)
+        for channel, curve in curves.items():
+            channel_curves[(id(node), channel)] = curve
+    return markers, channel_curves
+
+
+def _ancestor_chains(scene: _Scene, markers: list) -> list:
+    chains = []
+    for node in markers:
+        chain, parent = [], node.parent
+        while parent is not None:
+            chain.append(parent)
+            parent = parent.parent
+        chains.append(chain)
+    return chains
+
+
+def _check_ancestor(scene: _Scene, node: _Node) -> None:
+    drivers = _driver_index(scene)
+    for attr in ("rx", "ry", "rz", "sx", "sy", "sz", "ro"):
+        if (id(node), attr) in drivers:
+            raise scene.error(scene.line_of(drivers[(id(node), attr)][2]),
+                              f"group {node.name!r} above markers has an animated {attr}; only animated "
+                              f"translate is supported on groups")
+    for attr, default in _UNSUPPORTED_ANCESTOR_ATTRS.items():
+        values = node.static.get(attr)
+        if values and any(v != default for v in values):
+            raise scene.error(scene.line_of(node.pos), f"group {node.name!r} above markers sets .{attr} = {values}; pivots, "
+                                         f"shear, rotate axis and joint orient are not supported on groups")
+
+
+def _static_vector(node: _Node, attr: str, default: float) -> np.ndarray:
+    values = list(node.static.get(attr, [default] * 3))
+    values += [default] * (3 - len(values))
+    for axis, name in enumerate("xyz"):
+        single = node.static.get(attr + name)
+        if single:
+            values[axis] = single[0]
+    return np.array(values[:3], dtype=np.float64)
+
+
+def _static_translate(node: _Node) -> np.ndarray:
+    return _static_vector(node, "t", 0.0)
+
+
+def _static_linear(scene: _Scene, node: _Node) -> np.ndarray | None:
+    """3x3 rotate*scale of a group (column vectors), or None when it is the identity."""
+    angles = _static_vector(node, "r", 0.0)
+    scale = _static_vector(node, "s", 1.0)
+    if not angles.any() and (scale == 1.0).all():
+        return None
+    if scene.angle_unit.startswith("deg"):
+        angles = np.radians(angles)
+    order = _ROTATE_ORDERS[int(node.static.get("ro", [0])[0]) % 6]
+    rotation = np.eye(3)
+    for axis in order:  # the first axis of the order is applied first
+        i = "xyz".index(axis)
+        c, s = math.cos(angles[i]), math.sin(angles[i])
+        j, k = (i + 1) % 3, (i + 2) % 3
+        r = np.eye(3)
+        r[j, j] = r[k, k] = c
+        r[j, k], r[k, j] = -s, s
+        rotation = r @ rotation
+    return rotation @ np.diag(scale)
+
+
+# -- keys --------------------------------------------------------------------------------------
+
+def _parse_keys(scene: _Scene, curves: list) -> dict:
+    """Convert the key blocks of ``curves`` to arrays: id(curve) -> (times, values), in Maya
+    time units. All key text is converted in one numpy call; the per-block path only runs to
+    name the bad block when the counts disagree."""
+    text = scene.text
+    blocks = [(curve, b) for curve in curves for b in curve.key_blocks]
+    expected = sum(2 * (last - first + 1) for _, (first, last, _, _, _) in blocks)
+    numbers = None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            numbers = np.fromstring(" ".join(text[s:e] for _, (_, _, s, e, _) in blocks), sep=" ")
+    except (DeprecationWarning, ValueError):
+        numbers = None
+    if numbers is None or numbers.size != expected:
+        numbers = _parse_blocks_one_by_one(scene, blocks)
+
+    keys, offset = {}, 0
+    for curve in curves:
+        n_numbers = sum(2 * (last - first + 1) for first, last, _, _, _ in curve.key_blocks)
+        own = numbers[offset:offset + n_numbers]
+        offset += n_numbers
+        keys[id(curve)] = _assemble_curve(scene, curve, own)
+    return keys
+
+
+def _parse_blocks_one_by_one(scene: _Scene, blocks: list) -> np.ndarray:
+    parts = []
+    for curve, (first, last, start, end, pos) in blocks:
+        want = 2 * (last - first + 1)
+        chunk = scene.text[start:end]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                values = np.fromstring(chunk, sep=" ")
+            except ValueError:
+                values = np.empty(0)
+        if values.size != want:
+            tokens = chunk.split()
+            bad = next((t for t in tokens if not _is_number(t)), None)
+            detail = f"{bad!r} is not a number" if bad is not None else f"it holds {len(tokens)} numbers"
+            raise scene.error(
+                scene.line_of(pos),
+                f"curve {curve.name!r}: key block .ktv[{first}:{last}] must hold {want // 2} time/value pairs "
+                f"({want} numbers) but {detail}: the file is truncated or malformed",
+            )
+        parts.append(values)
+    return np.concatenate(parts) if parts else np.empty(0)
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _assemble_curve(scene: _Scene, curve: _Node, numbers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    if not curve.key_blocks:
+        raise scene.error(scene.line_of(curve.pos), f"curve {curve.name!r} drives a marker but has no keys (.ktv)")
+    pairs = numbers.reshape(-1, 2)
+    order = sorted(range(len(curve.key_blocks)), key=lambda i: curve.key_blocks[i][0])
+    offsets = np.cumsum([0] + [last - first + 1 for first, last, _, _, _ in curve.key_blocks])
+    expected_first = 0
+    pieces = []
+    for i in order:
+        first, last, _, _, pos = curve.key_blocks[i]
+        if first != expected_first:
+            raise scene.error(scene.line_of(pos), f"curve {curve.name!r}: key block .ktv[{first}:{last}] follows "
+                                                  f"key {expected_first - 1}; keys {expected_first}..{first - 1} are missing or repeated")
+        pieces.append(pairs[offsets[i]:offsets[i + 1]])
+        expected_first = last + 1
+    n_keys = expected_first
+    if curve.declared_keys is not None and curve.declared_keys != n_keys:
+        raise scene.error(scene.line_of(curve.pos), f"curve {curve.name!r} declares {curve.declared_keys} keys (setAttr -s) "
+                                      f"but its key blocks hold {n_keys}: the file is truncated or malformed")
+    pairs = pieces[0] if len(pieces) == 1 else np.concatenate(pieces)
+    times, values = pairs[:, 0], pairs[:, 1]
+    if n_keys > 1 and not (np.diff(times) > 0).all():
+        bad = int(np.argmin(np.diff(times) > 0))
+        raise scene.error(scene.line_of(curve.pos), f"curve {curve.name!r}: key times must increase; key {bad + 1} at "
+                                      f"{times[bad + 1]:g} follows {times[bad]:g}")
+    return times, values
+
+
+def _time_unit_fps(scene: _Scene) -> float:
+    unit = scene.time_unit
+    if unit in MAYA_TIME_UNITS:
+        return MAYA_TIME_UNITS[unit]
+    m = _FPS.match(unit)
+    if m and float(m.group(1)) > 0:
+        return float(m.group(1))
+    raise scene.error(None, f"time unit {unit!r} (currentUnit -t) is not supported; expected one of "
+                            f"{', '.join(MAYA_TIME_UNITS)} or '<N>fps'")
+
+
+def _snap_rate(raw: float) -> float:
+    """Snap a measured rate to an integer or NTSC (N/1.001) rate when it is within 1e-4."""
+    for candidate in (round(raw), round(raw * 1.001) / 1.001):
+        if candidate > 0 and abs(raw - candidate) <= 1e-4 * candidate:
+            return float(candidate)
+    return float(raw)
+
+
+@dataclass
+class _TimeGrid:
+    rate: float
+    key_rate: float | None
+    first_key: float          # earliest key time, Maya time units
+    frames_per_unit: float    # grid frames per Maya time unit
+    n_frames: int
+    start_frame: int
+    time_offset_seconds: float
+    interpolated_samples: int = 0
+
+    @classmethod
+    def fit(cls, scene: _Scene, keys: dict, fps: float, rate: float | None) -> "_TimeGrid":
+        # the most common key spacing over all curves (one median, robust to a missing key)
+        diffs = [np.diff(t) for t, _ in keys.values() if t.size > 1]
+        key_rate = _snap_rate(fps / float(np.median(np.concatenate(diffs)))) if diffs else None
+        if rate is None:
+            if key_rate is None:
+                raise scene.error(None, "every curve has a single key, so the capture rate cannot be inferred; pass --rate (rate=..., Hz)")
+            rate = key_rate
+        first = min(float(t[0]) for t, _ in keys.values())
+        last = max(float(t[-1]) for t, _ in keys.values())
+        frames_per_unit = rate / fps
+        n_frames = int(math.floor((last - first) * frames_per_unit + _ON_GRID_TOLERANCE)) + 1
+        most_keys = max(t.size for t, _ in keys.values())
+        if n_frames > 100 * most_keys + 1000:  # a typo'd --rate would otherwise exhaust memory
+            raise OptionError(f"{scene.source}: a rate of {rate:g} Hz makes {n_frames} frames out of curves with at "
+                              f"most {most_keys} keys (key rate {key_rate or float('nan'):g} Hz); pass a lower --rate")
+        start = first / fps * rate
+        start_frame = int(round(start))
+        offset = (start - start_frame) / rate
+        return cls(rate=float(rate), key_rate=key_rate, first_key=first, frames_per_unit=frames_per_unit,
+                   n_frames=n_frames, start_frame=start_frame,
+                   time_offset_seconds=0.0 if abs(offset) < 1e-12 else float(offset))
+
+    def sample(self, times: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """(n_frames,) values of one curve on the grid: exact at keys on the grid, linear between
+        keys, NaN outside the curve's key range."""
+        u = (times - self.first_key) * self.frames_per_unit
+        nearest = np.rint(u)
+        on_grid = np.abs(u - nearest) <= _ON_GRID_TOLERANCE
+        u = np.where(on_grid, nearest, u)
+        frames = np.arange(self.n_frames, dtype=np.float64)
+        if on_grid.all() and u.size == self.n_frames and u[0] == 0.0 and (np.diff(u) == 1.0).all():
+            return values.astype(np.float64, copy=True)
+        sampled = np.interp(frames, u, values, left=np.nan, right=np.nan)
+        if u.size == 1:
+            sampled[frames != u[0]] = np.nan
+        inside = (frames >= u[0]) & (frames <= u[-1])
+        self.interpolated_samples += int(inside.sum() - np.isin(frames[inside], u[on_grid]).sum())
+        return sampled
