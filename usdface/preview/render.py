@@ -1,0 +1,1054 @@
+"""Software preview renderer: a z-buffered triangle rasteriser in numpy, Lambert shading, and
+OpenCV overlays (markers, wireframe, text, colour bar), plus an atomic PNG writer.
+
+No GPU, no pxr: every function takes numpy arrays and returns arrays; reading USD is the caller's
+job (usdface/usd/). Images are ``(H, W, 3) uint8`` in OpenCV's **BGR** channel order (what
+:func:`write_png` and ``cv2.imwrite`` expect); every colour given as an argument is **RGB**
+(0..255 integers), as people write them.
+
+How a frame is made
+-------------------
+1. :func:`rasterize`: every triangle is scan-converted over the pixel centres of its bounding box,
+   all triangles at once in vectorised chunks; a z-buffer (``np.minimum.at``) keeps the nearest
+   surface per pixel, whatever the drawing order. Coverage rule: a pixel belongs to a triangle when
+   its centre is inside or on an edge.
+2. Shading, per pixel: barycentric (perspective-correct) interpolation of vertex normals and vertex
+   colours, Lambert with a key light near the camera (a headlight), a fill light from the side, a
+   little ambient and specular. Back faces (seen through the eye and mouth holes of an open face
+   mesh) are lit as seen from their side but tinted and darker.
+3. Optional wireframe of the original polygon edges, depth tested against the z-buffer.
+4. With ``supersample=k`` steps 1–3 run at k times the resolution and are averaged down
+   (anti-aliasing).
+5. Overlays at the final resolution: markers as dots (filled when visible, hollow and dimmer when
+   the surface hides them), a second point set as diamonds, labels, title, colour bar, legend.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, MeshError, OptionError, ResourceError, UsdFaceError
+from .camera import Camera
+from .colormap import (CLAY, NAN_COLOR, apply_colormap, colormap_lut, region_palette as _region_palette,
+                       scalar_range as _scalar_range)
+
+#: default background: vertical gradient, RGB 0..255, top then bottom
+BACKGROUND = ((72, 76, 84), (30, 32, 36))
+#: shading modes of :func:`render_mesh`
+SHADINGS = ("smooth", "flat", "unlit")
+#: tint mixed into back faces (RGB 0..1)
+BACK_TINT = (0.42, 0.33, 0.48)
+
+
+def _cv2():
+    try:
+        import cv2
+    except ImportError as exc:  # pragma: no cover - cv2 is a dependency of usdface
+        raise UsdFaceError("usdface previews need OpenCV: pip install opencv-contrib-python-headless") from exc
+    return cv2
+
+
+# ================================================================================================
+# rasterisation
+# ================================================================================================
+def rasterize(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
+              max_candidates: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:
+    """Z-buffered scan conversion of triangles given in image coordinates.
+
+    Parameters
+    ----------
+    xy : ndarray, shape (N, 2)
+        Vertex image positions (x right, y down; pixel (i, j) has its centre at (j + .5, i + .5)).
+        Triangles with a non-finite vertex are skipped.
+    zkey : ndarray, shape (N,)
+        Per-vertex depth key, linear in image space, smaller = nearer: the depth for an
+        orthographic camera, ``-1 / depth`` for a perspective one.
+    triangles : ndarray, shape (T, 3), int
+        Vertex indices.
+    size : (int, int)
+        Image (width, height).
+    max_candidates : int
+        Pixels processed per vectorised chunk (bounds memory: ~100 bytes each).
+
+    Returns
+    -------
+    triangle : ndarray, shape (H, W), int32
+        Index of the nearest triangle covering each pixel centre, -1 for background.
+    zbuf : ndarray, shape (H, W), float64
+        Its interpolated ``zkey``; +inf for background.
+
+    Notes
+    -----
+    Scanline spans, vectorised over all triangles: for every pixel row whose centre line crosses a
+    triangle, the three edge half-planes give the covered x-interval, and only covered pixels are
+    generated. A pixel is covered when its centre lies inside the triangle or on an edge; edge
+    crossings are computed in a canonical form, so triangles sharing an edge leave neither cracks
+    nor gaps. Depth ties go to either triangle. Cost is proportional to the number of covered
+    pixels (with overdraw) plus the number of triangle rows.
+    """
+    w, h = (int(s) for s in size)
+    xy = np.asarray(xy, dtype=np.float64)
+    z = np.asarray(zkey, dtype=np.float64)
+    tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    tri_index = np.full(h * w, -1, dtype=np.int32)
+    zbuf = np.full(h * w, np.inf)
+    if tri.shape[0] == 0:
+        return tri_index.reshape(h, w), zbuf.reshape(h, w)
+    x, y, zt = xy[tri, 0], xy[tri, 1], z[tri]
+    with np.errstate(invalid="ignore"):
+        e1x, e1y = x[:, 1] - x[:, 0], y[:, 1] - y[:, 0]
+        e2x, e2y = x[:, 2] - x[:, 0], y[:, 2] - y[:, 0]
+        area = e1x * e2y - e2x * e1y
+        ok = np.isfinite(area) & np.isfinite(zt).all(axis=1) & (area != 0)
+        rmin = np.ceil(y.min(axis=1) - 0.5)  # first and last pixel rows whose centre is in range
+        rmax = np.floor(y.max(axis=1) - 0.5)
+        ok &= (rmax >= 0) & (rmin <= h - 1) & (rmax >= rmin)
+        ok &= (x.max(axis=1) >= 0.5) & (x.min(axis=1) <= w - 0.5)
+    ids = np.flatnonzero(ok)
+    if ids.size == 0:
+        return tri_index.reshape(h, w), zbuf.reshape(h, w)
+    r0 = np.clip(rmin[ids], 0, h - 1).astype(np.int64)
+    nrow = np.clip(rmax[ids], 0, h - 1).astype(np.int64) - r0 + 1
+    # depth plane z = z0 + gx (x - x0) + gy (y - y0)
+    a_ = area[ids]
+    dz1, dz2 = zt[ids, 1] - zt[ids, 0], zt[ids, 2] - zt[ids, 0]
+    gx = (dz1 * e2y[ids] - dz2 * e1y[ids]) / a_
+    gy = (dz2 * e1x[ids] - dz1 * e2x[ids]) / a_
+    # edges v0->v1, v1->v2, v2->v0 in a canonical form (low-y endpoint first) so that two
+    # triangles sharing an edge compute bit-identical crossings: no cracks, no double gaps
+    xa, ya = x[ids], y[ids]
+    xb, yb = np.roll(xa, -1, axis=1), np.roll(ya, -1, axis=1)
+    swap = yb < ya
+    xl, yl = np.where(swap, xb, xa), np.where(swap, yb, ya)
+    xh, yh = np.where(swap, xa, xb), np.where(swap, ya, yb)
+    dy = yh - yl
+    horizontal = dy == 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(horizontal, 0.0, (xh - xl) / np.where(horizontal, 1.0, dy))
+    sgn = np.sign(a_)[:, None]
+    # inside <=> sgn * ((xb-xa)(py-ya) - (yb-ya)(px-xa)) >= 0
+    kind = sgn * (yb - ya)  # > 0: crossing is an upper bound of x; < 0: a lower bound
+    hsign = sgn * (xb - xa)  # horizontal edge: inside <=> hsign * (py - ya) >= 0
+    row_cum = np.cumsum(nrow)
+    t_start = 0
+    while t_start < ids.size:  # chunks of triangles bounded by their number of rows
+        base = row_cum[t_start - 1] if t_start else 0
+        t_stop = max(int(np.searchsorted(row_cum, base + max_candidates // 4, side="right")), t_start + 1)
+        sl = slice(t_start, t_stop)
+        nr = nrow[sl]
+        rt = np.repeat(np.arange(t_stop - t_start), nr)  # chunk-local triangle of each row
+        row = r0[sl][rt] + (np.arange(rt.size) - (np.cumsum(nr) - nr)[rt])
+        yc = row + 0.5
+        lo = np.full(rt.size, -np.inf)
+        hi = np.full(rt.size, np.inf)
+        for e in range(3):
+            te = t_start + rt
+            xc = xl[te, e] + (yc - yl[te, e]) * slope[te, e]
+            k = kind[te, e]
+            lo = np.where(k < 0, np.maximum(lo, xc), lo)
+            hi = np.where(k > 0, np.minimum(hi, xc), hi)
+            dead = horizontal[te, e] & (hsign[te, e] * (yc - ya[te, e]) < 0)
+            lo[dead] = np.inf
+        with np.errstate(invalid="ignore"):
+            j0 = np.maximum(np.ceil(lo - 0.5), 0.0)
+            j1 = np.minimum(np.floor(hi - 0.5), w - 1.0)
+            cnt = np.where(j1 >= j0, j1 - j0 + 1, 0.0).astype(np.int64)
+        live = np.flatnonzero(cnt)
+        rt, row, yc, j0, cnt = rt[live], row[live], yc[live], j0[live].astype(np.int64), cnt[live]
+        te = t_start + rt
+        zrow = zt[ids[te], 0] + gx[te] * (j0 + 0.5 - xa[te, 0]) + gy[te] * (yc - ya[te, 0])
+        pix_cum = np.cumsum(cnt)
+        r_start = 0
+        while r_start < rt.size:  # chunks of rows bounded by their number of pixels
+            pbase = pix_cum[r_start - 1] if r_start else 0
+            r_stop = max(int(np.searchsorted(pix_cum, pbase + max_candidates, side="right")), r_start + 1)
+            rs = slice(r_start, r_stop)
+            c = cnt[rs]
+            pr = np.repeat(np.arange(r_stop - r_start), c)
+            kk = np.arange(pr.size) - (np.cumsum(c) - c)[pr]
+            pix = row[rs][pr] * w + j0[rs][pr] + kk
+            depth = zrow[rs][pr] + gx[te[rs]][pr] * kk
+            np.minimum.at(zbuf, pix, depth)
+            win = depth <= zbuf[pix]
+            tri_index[pix[win]] = ids[te[rs]][pr[win]]
+            r_start = r_stop
+        t_start = t_stop
+    return tri_index.reshape(h, w), zbuf.reshape(h, w)
+
+
+def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(N, 3) unit vertex normals, area-weighted average of the incident triangle normals
+    (right-hand rule: counter-clockwise triangles face the viewer). Isolated vertices get (0, 0, 0)."""
+    p = np.asarray(points, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    fn = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])  # length = 2 * area
+    flat = t.ravel()
+    n = np.stack([np.bincount(flat, weights=np.repeat(fn[:, k], 3), minlength=p.shape[0]) for k in range(3)], axis=1)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+
+@dataclass(frozen=True, eq=False)
+class Buffers:
+    """What the rasteriser saw: per-pixel triangle and depth, per-vertex projections.
+
+    Attributes
+    ----------
+    camera : Camera
+        The camera of the buffers (at the buffer resolution).
+    triangle : ndarray, shape (H, W), int32
+        Nearest triangle per pixel, -1 for background.
+    depth : ndarray, shape (H, W), float64
+        Distance along the viewing direction of the visible surface; +inf for background.
+    xy : ndarray, shape (N, 2)
+        Projected vertices.
+    vertex_depth : ndarray, shape (N,)
+        Vertex depths.
+    front : ndarray, shape (T,), bool
+        True for triangles facing the camera (counter-clockwise as seen by it).
+    """
+
+    camera: Camera
+    triangle: np.ndarray
+    depth: np.ndarray
+    xy: np.ndarray
+    vertex_depth: np.ndarray
+    front: np.ndarray
+
+    @property
+    def covered(self) -> np.ndarray:
+        """(H, W) bool: pixels showing the mesh."""
+        return self.triangle >= 0
+
+    def facing(self) -> np.ndarray:
+        """(H, W) int8: +1 front face, -1 back face, 0 background."""
+        out = np.zeros(self.triangle.shape, dtype=np.int8)
+        cov = self.covered
+        out[cov] = np.where(self.front[self.triangle[cov]], 1, -1)
+        return out
+
+
+def render_buffers(points: np.ndarray, triangles: np.ndarray, camera: Camera) -> Buffers:
+    """Rasterise a mesh through ``camera`` (see :func:`rasterize`).
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 3)
+    triangles : ndarray, shape (T, 3), int
+    camera : Camera
+
+    Returns
+    -------
+    Buffers
+    """
+    points, triangles = _check_mesh(points, triangles)
+    xy, depth = camera.project(points)
+    if camera.perspective:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zkey = np.where(depth > 0, -1.0 / depth, np.nan)
+    else:
+        zkey = depth
+    tri_index, zbuf = rasterize(xy, zkey, triangles, camera.size)
+    if camera.perspective:
+        with np.errstate(divide="ignore"):
+            zbuf = -1.0 / zbuf  # -1/inf = -0 for background: restore +inf below
+        zbuf[tri_index < 0] = np.inf
+    t = triangles
+    with np.errstate(invalid="ignore"):
+        area = ((xy[t[:, 1], 0] - xy[t[:, 0], 0]) * (xy[t[:, 2], 1] - xy[t[:, 0], 1])
+                - (xy[t[:, 2], 0] - xy[t[:, 0], 0]) * (xy[t[:, 1], 1] - xy[t[:, 0], 1]))
+    front = area < 0  # image y points down: counter-clockwise in the world looks clockwise here
+    return Buffers(camera=camera, triangle=tri_index, depth=zbuf, xy=xy, vertex_depth=depth, front=front)
+
+
+def _neighbourhood_max(depth: np.ndarray, radius: int) -> np.ndarray:
+    if radius <= 0:
+        return depth
+    cv2 = _cv2()
+    d = np.where(np.isfinite(depth), depth, np.finfo(np.float32).max).astype(np.float32)
+    return cv2.dilate(d, np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)).astype(np.float64)
+
+
+def point_visibility(points: np.ndarray, buffers: Buffers, *, tolerance: float, radius: int = 1,
+                     _ref: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Which points the rendered surface hides.
+
+    Parameters
+    ----------
+    points : ndarray, shape (M, 3)
+        World points (markers...); NaN rows are neither in view nor visible.
+    buffers : Buffers
+        From :func:`render_buffers`.
+    tolerance : float
+        World units: a point up to this far behind the visible surface still counts as visible
+        (points on the surface, bound points, markers glued to the skin).
+    radius : int
+        Compare against the farthest surface within this many pixels (absorbs the depth slope of
+        surfaces seen at grazing angles).
+
+    Returns
+    -------
+    in_view : ndarray, shape (M,), bool
+        Finite, in front of the camera and inside the image.
+    visible : ndarray, shape (M,), bool
+        In view and not behind the surface.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    xy, depth = buffers.camera.project(pts)
+    h, w = buffers.depth.shape
+    with np.errstate(invalid="ignore"):
+        in_view = (np.isfinite(xy).all(axis=1) & np.isfinite(depth) & (xy[:, 0] >= 0) & (xy[:, 0] < w)
+                   & (xy[:, 1] >= 0) & (xy[:, 1] < h))
+        if buffers.camera.perspective:
+            in_view &= depth > 0
+    visible = np.zeros(pts.shape[0], dtype=bool)
+    idx = np.flatnonzero(in_view)
+    if idx.size:
+        ref = _neighbourhood_max(buffers.depth, radius) if _ref is None else _ref
+        j = np.floor(xy[idx, 0]).astype(np.int64)
+        i = np.floor(xy[idx, 1]).astype(np.int64)
+        visible[idx] = depth[idx] <= ref[i, j] + tolerance
+    return in_view, visible
+
+
+# ================================================================================================
+# input checks
+# ================================================================================================
+def _check_mesh(points, triangles) -> tuple[np.ndarray, np.ndarray]:
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] == 0:
+        raise MeshError(f"preview: points must have shape (N>0, 3); got {p.shape}")
+    if not np.isfinite(p).all():
+        raise MeshError(f"preview: {int((~np.isfinite(p)).any(axis=1).sum())} mesh points are NaN or infinite")
+    t = np.asarray(triangles)
+    if t.ndim != 2 or t.shape[1] != 3 or (t.size and not np.issubdtype(t.dtype, np.integer)):
+        raise MeshError(f"preview: triangles must be an integer array of shape (T, 3); got {t.shape} {t.dtype}")
+    t = t.astype(np.int64, copy=False)
+    if t.size and (t.min() < 0 or t.max() >= p.shape[0]):
+        raise MeshError(f"preview: triangle vertex indices must be in 0..{p.shape[0] - 1}; got {t.min()}..{t.max()}")
+    return p, t
+
+
+def _points3(a, what: str) -> np.ndarray | None:
+    if a is None:
+        return None
+    a = np.asarray(a, dtype=np.float64)
+    if a.ndim == 1 and a.size == 3:
+        a = a.reshape(1, 3)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise OptionError(f"preview: {what} must have shape (M, 3); got {a.shape}")
+    return a
+
+
+def _labels(labels, n: int, what: str) -> list[str] | None:
+    if labels is None:
+        return None
+    labels = [str(s) for s in labels]
+    if len(labels) != n:
+        raise OptionError(f"preview: {len(labels)} {what} labels for {n} {what}")
+    return labels
+
+
+def _rgb(c, what: str) -> tuple[int, int, int]:
+    try:
+        r, g, b = (int(round(float(v))) for v in c)
+    except (TypeError, ValueError):
+        raise OptionError(f"preview: {what} must be an (r, g, b) colour in 0..255; got {c!r}") from None
+    if not all(0 <= v <= 255 for v in (r, g, b)):
+        raise OptionError(f"preview: {what} must be an (r, g, b) colour in 0..255; got {c!r}")
+    return r, g, b
+
+
+def _bgr(rgb) -> tuple[int, int, int]:
+    return int(rgb[2]), int(rgb[1]), int(rgb[0])
+
+
+def polygon_edges(face_vertex_counts: np.ndarray, face_vertex_indices: np.ndarray) -> np.ndarray:
+    """Unique undirected edges of polygons (USD faceVertexCounts / faceVertexIndices layout).
+
+    Returns
+    -------
+    ndarray, shape (E, 2), int64
+        Sorted pairs (a < b), for the wireframe of the original polygons (quads stay quads).
+    """
+    counts = np.asarray(face_vertex_counts, dtype=np.int64).ravel()
+    idx = np.asarray(face_vertex_indices, dtype=np.int64).ravel()
+    if counts.sum() != idx.size:
+        raise MeshError(f"polygon counts sum to {counts.sum()} but there are {idx.size} indices")
+    starts = np.cumsum(counts) - counts
+    pos = np.arange(idx.size)
+    face = np.repeat(np.arange(counts.size), counts)
+    nxt = np.where(pos + 1 < starts[face] + counts[face], pos + 1, starts[face])
+    e = np.sort(np.stack([idx, idx[nxt]], axis=1), axis=1)
+    return np.unique(e, axis=0)
+
+
+def _region_items(region_colors) -> list[tuple[str, str | None, np.ndarray]]:
+    """(name, role, indices) from a mapping name -> indices | Region, or a sequence of Regions."""
+    items = []
+    if isinstance(region_colors, Mapping):
+        pairs = list(region_colors.items())
+    elif isinstance(region_colors, Sequence) and not isinstance(region_colors, (str, bytes)):
+        pairs = [(getattr(r, "name", None), r) for r in region_colors]
+    else:
+        raise OptionError("preview: region_colors must be a dict {name: vertex indices} or a list of Region")
+    for name, val in pairs:
+        role = getattr(val, "role", None)
+        if hasattr(val, "indices"):
+            name = name or val.name
+            val = val.indices
+        if name is None:
+            raise OptionError("preview: every region needs a name")
+        items.append((str(name), role, np.asarray(val).ravel()))
+    return items
+
+
+# ================================================================================================
+# shading
+# ================================================================================================
+def _normalize(v) -> np.ndarray:
+    v = np.asarray(v, dtype=np.float64)
+    return v / np.linalg.norm(v)
+
+
+# lights in camera coordinates (right, up, viewing direction); vectors point toward the light
+_KEY = _normalize((-0.35, 0.45, -1.0))
+_FILL = _normalize((0.85, -0.05, -0.45))
+_HALF = _normalize(_KEY + np.array([0.0, 0.0, -1.0]))
+_KEY32, _FILL32, _HALF32 = (v.astype(np.float32) for v in (_KEY, _FILL, _HALF))
+
+
+def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarray, *, shading: str,
+           specular: float, scalar_t: np.ndarray | None = None,
+           lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Shaded colours (K, 3) uint8 BGR of the K covered pixels, and their flat indices.
+
+    Per-triangle data (barycentric gradients, per-corner normal and colour) is packed once into a
+    contiguous float32 block, so each pixel needs a single row gather.
+
+    With ``scalar_t`` ((N,) values normalised to [0, 1], NaN for none) the scalar itself is
+    interpolated and looked up in ``lut`` per pixel, so a pixel between a low and a high vertex
+    shows a colour of the map (interpolating the colours would show colours that are not on it);
+    pixels mostly weighted by NaN vertices show :data:`NAN_COLOR`.
+    """
+    h, w = buf.triangle.shape
+    flat_tri = buf.triangle.ravel()
+    pix = np.flatnonzero(flat_tri >= 0)
+    if pix.size == 0:
+        return np.zeros((0, 3), np.uint8), pix
+    t = flat_tri[pix]
+    # --- per triangle ---------------------------------------------------------------------------
+    v = buf.xy[tris]  # (T, 3, 2)
+    e1 = v[:, 1] - v[:, 0]
+    e2 = v[:, 2] - v[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / (e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1])
+    inv[~np.isfinite(inv)] = 0.0
+    rot = buf.camera.rotation
+    flat = shading == "flat"
+    if shading == "unlit":
+        corner_n = np.zeros((tris.shape[0], 3, 3))
+    elif flat:
+        fn = np.cross(points[tris[:, 1]] - points[tris[:, 0]], points[tris[:, 2]] - points[tris[:, 0]]) @ rot.T
+        corner_n = np.repeat(fn[:, None, :], 3, axis=1)
+    else:
+        corner_n = (vertex_normals(points, tris) @ rot.T)[tris]
+    front = buf.front.astype(np.float64)[:, None, None]
+    corner_n = corner_n * (2.0 * front - 1.0)  # back faces: lit from their own side
+    geo = np.stack([v[:, 0, 0], v[:, 0, 1], e2[:, 1] * inv, -e2[:, 0] * inv, -e1[:, 1] * inv, e1[:, 0] * inv], axis=1)
+    parts = [geo, corner_n.reshape(-1, 9), colors[tris].reshape(-1, 9), buf.front[:, None].astype(np.float64)]
+    if buf.camera.perspective:
+        with np.errstate(divide="ignore"):
+            parts.append(1.0 / buf.vertex_depth[tris])
+    else:
+        parts.append(np.ones((tris.shape[0], 3)))
+    if scalar_t is not None:
+        ct = scalar_t[tris]
+        bad = ~np.isfinite(ct)
+        if bad.any():  # a NaN corner takes the mean of the triangle's finite corners (or 0)
+            cnt = (~bad).sum(axis=1)
+            mean = np.divide(np.where(bad, 0.0, ct).sum(axis=1), cnt, out=np.zeros(len(ct)), where=cnt > 0)
+            ct = np.where(bad, mean[:, None], ct)
+        parts += [ct, bad.astype(np.float64)]
+    # (C, T) so that the per-pixel gather gives (C, K) with contiguous rows (a (K, C) block would
+    # be read column by column with a cache miss per element)
+    block = np.ascontiguousarray(np.concatenate(parts, axis=1).T, dtype=np.float32)
+    # --- per pixel, in cache-sized chunks -------------------------------------------------------
+    out = np.empty((pix.size, 3), np.uint8)
+    lut32 = None if lut is None else np.ascontiguousarray(lut.T, dtype=np.float32)
+    step = 1 << 15
+    for k in range(0, pix.size, step):
+        out[k:k + step] = _shade_pixels(block, t[k:k + step], pix[k:k + step], w, shading=shading,
+                                        specular=specular, perspective=buf.camera.perspective,
+                                        scalar=scalar_t is not None, lut=lut32)
+    return out, pix
+
+
+_NAN32 = np.asarray(NAN_COLOR, dtype=np.float32)[:, None]
+_TINT32 = np.asarray(BACK_TINT, dtype=np.float32)[:, None]
+
+
+def _shade_pixels(block, t, pix, w, *, shading, specular, perspective, scalar, lut) -> np.ndarray:
+    c = np.take(block, t, axis=1)
+    py, px = np.divmod(pix, w)
+    dx = px.astype(np.float32)
+    dx += 0.5
+    dx -= c[0]
+    dy = py.astype(np.float32)
+    dy += 0.5
+    dy -= c[1]
+    b1 = np.clip(c[2] * dx + c[3] * dy, 0.0, 1.0)
+    b2 = np.clip(c[4] * dx + c[5] * dy, 0.0, 1.0)
+    b0 = np.clip(1.0 - b1 - b2, 0.0, 1.0)
+    if perspective:  # perspective-correct: interpolate attribute/depth, then divide
+        b0 *= c[25]
+        b1 *= c[26]
+        b2 *= c[27]
+    norm = b0 + b1 + b2
+    norm[norm <= 0] = 1.0
+    b0 /= norm
+    b1 /= norm
+    b2 /= norm
+    if scalar:
+        tt = b0 * c[28] + b1 * c[29] + b2 * c[30]
+        nanw = b0 * c[31] + b1 * c[32] + b2 * c[33]
+        idx = np.clip(np.rint(tt * (lut.shape[1] - 1)), 0, lut.shape[1] - 1).astype(np.intp)
+        base = np.where(nanw < 0.5, lut[:, idx], _NAN32)
+    else:
+        base = b0 * c[15:18] + b1 * c[18:21] + b2 * c[21:24]  # (3, K)
+    if shading == "unlit":
+        base *= 255.0
+        base += 0.5
+        np.clip(base, 0.0, 255.0, out=base)
+        return base[::-1].T.astype(np.uint8)
+    n = b0 * c[6:9] + b1 * c[9:12] + b2 * c[12:15]
+    n /= np.maximum(np.sqrt((n * n).sum(axis=0)), 1e-20)
+    key = np.clip(_KEY32 @ n, 0.0, None)
+    fill = np.clip(_FILL32 @ n, 0.0, None)
+    light = 0.20 + 0.72 * key + 0.26 * fill
+    hv = np.clip(_HALF32 @ n, 0.0, None)
+    h8 = hv * hv
+    h8 *= h8
+    h8 *= h8
+    spec = h8 * h8
+    spec *= spec
+    spec *= h8  # hv ** 40
+    spec *= specular
+    back = c[24] < 0.5
+    if back.any():
+        base[:, back] = 0.4 * base[:, back] + 0.6 * _TINT32
+        light[back] *= 0.62
+        spec[back] = 0.0
+    rgb = base * light
+    rgb += spec
+    rgb *= 255.0
+    rgb += 0.5
+    np.clip(rgb, 0.0, 255.0, out=rgb)
+    return rgb[::-1].T.astype(np.uint8)
+
+
+def _background(size, background) -> np.ndarray:
+    """(H, W, 3) uint8 BGR background."""
+    w, h = size
+    if background is None:
+        top, bottom = (np.asarray(c[::-1], dtype=np.float32) for c in BACKGROUND)
+        t = np.linspace(0.0, 1.0, h, dtype=np.float32)[:, None]
+        col = (top * (1 - t) + bottom * t + 0.5).astype(np.uint8)
+        return np.ascontiguousarray(np.broadcast_to(col[:, None, :], (h, w, 3)))
+    out = np.empty((h, w, 3), np.uint8)
+    out[:] = _bgr(_rgb(background, "background"))
+    return out
+
+
+def _wire_mask(buf: Buffers, edges: np.ndarray, tolerance: float, ref: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels on visible parts of the edges."""
+    h, w = buf.triangle.shape
+    p0, p1 = buf.xy[edges[:, 0]], buf.xy[edges[:, 1]]
+    d0, d1 = buf.vertex_depth[edges[:, 0]], buf.vertex_depth[edges[:, 1]]
+    ok = np.isfinite(p0).all(axis=1) & np.isfinite(p1).all(axis=1)
+    p0, p1, d0, d1 = p0[ok], p1[ok], d0[ok], d1[ok]
+    mask = np.zeros(h * w, dtype=bool)
+    if p0.shape[0] == 0:
+        return mask.reshape(h, w)
+    length = np.abs(p1 - p0).max(axis=1)
+    nseg = np.clip(np.ceil(length * 1.5).astype(np.int64), 1, 4 * (w + h))
+    e = np.repeat(np.arange(p0.shape[0]), nseg + 1)
+    first = np.cumsum(nseg + 1) - (nseg + 1)
+    s = (np.arange(e.size) - first[e]) / nseg[e]
+    xy = p0[e] + (p1 - p0)[e] * s[:, None]
+    if buf.camera.perspective:
+        depth = 1.0 / ((1 - s) / d0[e] + s / d1[e])
+    else:
+        depth = d0[e] + (d1 - d0)[e] * s
+    j = np.floor(xy[:, 0]).astype(np.int64)
+    i = np.floor(xy[:, 1]).astype(np.int64)
+    inside = (j >= 0) & (j < w) & (i >= 0) & (i < h)
+    j, i, depth = j[inside], i[inside], depth[inside]
+    vis = depth <= ref[i, j] + tolerance
+    mask[i[vis] * w + j[vis]] = True
+    return mask.reshape(h, w)
+
+
+# ================================================================================================
+# overlays (final resolution, BGR uint8)
+# ================================================================================================
+_FONT = 0  # cv2.FONT_HERSHEY_SIMPLEX
+
+
+def _text(img, text: str, org, scale: float, rgb, *, thickness: int = 1, outline: bool = True,
+          align: str = "left") -> None:
+    """Anti-aliased text with a dark outline; org is the baseline start (or end if align=right)."""
+    cv2 = _cv2()
+    x, y = int(round(org[0])), int(round(org[1]))
+    if align == "right":
+        (tw, _), _ = cv2.getTextSize(text, _FONT, scale, thickness)
+        x -= tw
+    if outline:
+        cv2.putText(img, text, (x, y), _FONT, scale, (12, 12, 12), thickness + 2, cv2.LINE_AA)
+    cv2.putText(img, text, (x, y), _FONT, scale, _bgr(rgb), thickness, cv2.LINE_AA)
+
+
+def _dim(rgb, k: float = 0.5, toward=(110, 110, 110)) -> tuple[int, int, int]:
+    return tuple(int(round(c * (1 - k) + t * k)) for c, t in zip(rgb, toward))
+
+
+def _draw_points(img, xy, in_view, visible, labels, rgb, *, radius: float, shape: str,
+                 font: float) -> None:
+    cv2 = _cv2()
+    sh = 4
+    f = 1 << sh
+    hidden_rgb = _dim(rgb, 0.45)
+    order = np.argsort(visible, kind="stable")  # hidden first, visible on top
+    for m in order:
+        if not in_view[m]:
+            continue
+        cx, cy = xy[m, 0] - 0.5, xy[m, 1] - 0.5
+        c = (int(round(cx * f)), int(round(cy * f)))
+        vis = bool(visible[m])
+        if shape == "circle":
+            r = int(round(radius * f))
+            if vis:
+                cv2.circle(img, c, r + f, (15, 15, 15), -1, cv2.LINE_AA, sh)
+                cv2.circle(img, c, r, _bgr(rgb), -1, cv2.LINE_AA, sh)
+            else:
+                cv2.circle(img, c, r, (15, 15, 15), 2, cv2.LINE_AA, sh)
+                cv2.circle(img, c, r, _bgr(hidden_rgb), 1, cv2.LINE_AA, sh)
+        else:  # diamond
+            r = radius * 1.25
+            poly = np.array([[cx, cy - r], [cx + r, cy], [cx, cy + r], [cx - r, cy]])
+            ip = np.round(poly * f).astype(np.int32).reshape(-1, 1, 2)
+            if vis:
+                big = np.array([[cx, cy - r - 1.3], [cx + r + 1.3, cy], [cx, cy + r + 1.3], [cx - r - 1.3, cy]])
+                cv2.fillConvexPoly(img, np.round(big * f).astype(np.int32), (15, 15, 15), cv2.LINE_AA, sh)
+                cv2.fillConvexPoly(img, ip.reshape(-1, 2), _bgr(rgb), cv2.LINE_AA, sh)
+            else:
+                cv2.polylines(img, [ip], True, (15, 15, 15), 2, cv2.LINE_AA, sh)
+                cv2.polylines(img, [ip], True, _bgr(hidden_rgb), 1, cv2.LINE_AA, sh)
+        if labels is not None and labels[m]:
+            _text(img, labels[m], (cx + radius + 2, cy - radius - 1), font, rgb if vis else hidden_rgb)
+
+
+def _colorbar(img, lut: np.ndarray, lo: float, hi: float, label: str, s: float, has_nan: bool) -> None:
+    cv2 = _cv2()
+    h, w = img.shape[:2]
+    bw = max(8, int(round(12 * s)))
+    x1 = w - int(round(12 * s))
+    x0 = x1 - bw
+    y0, y1 = int(round(h * 0.22)), int(round(h * 0.74))
+    n = max(y1 - y0, 2)
+    col = lut[np.rint(np.linspace(lut.shape[0] - 1, 0, n)).astype(int)]  # top = high
+    img[y0:y0 + n, x0:x1] = (np.round(col[:, ::-1] * 255).astype(np.uint8))[:, None, :]
+    cv2.rectangle(img, (x0 - 1, y0 - 1), (x1, y0 + n), (200, 200, 200), 1, cv2.LINE_8)  # outside the bar
+    font = 0.38 * s
+    fmt = _fmt_range(lo, hi)
+    for frac, val in ((0.0, hi), (0.5, (lo + hi) / 2), (1.0, lo)):
+        y = y0 + frac * (n - 1)
+        cv2.line(img, (x0 - 4, int(round(y))), (x0 - 1, int(round(y))), (220, 220, 220), 1, cv2.LINE_AA)
+        _text(img, fmt(val), (x0 - 6, y + 4 * s), font, (235, 235, 235), align="right")
+    if label:
+        _text(img, label, (x1, y0 - 13 * s), 0.42 * s, (240, 240, 240), align="right")
+    if has_nan:
+        yy = y0 + n + int(round(8 * s))
+        cv2.rectangle(img, (x0, yy), (x1 - 1, yy + bw - 1), (140, 140, 140), -1)
+        _text(img, "n/a", (x0 - 6, yy + bw - 2), font, (235, 235, 235), align="right")
+
+
+def _fmt_range(lo: float, hi: float):
+    span = abs(hi - lo) or max(abs(hi), abs(lo), 1.0)
+    mag = max(abs(lo), abs(hi))
+    if mag >= 1e5 or (mag > 0 and mag < 1e-3):
+        return lambda v: f"{v:.3g}"
+    digits = int(np.clip(2 - np.floor(np.log10(span)), 0, 6))
+    return lambda v: f"{v:.{digits}f}"
+
+
+def _legend(img, entries, s: float, *, corner: str = "bottom-left") -> None:
+    """entries: (kind, rgb, text); kind 'swatch' | 'circle' | 'diamond'."""
+    cv2 = _cv2()
+    if not entries:
+        return
+    h, w = img.shape[:2]
+    font = 0.40 * s
+    step = int(round(17 * s))
+    sw = int(round(10 * s))
+    widths = [cv2.getTextSize(t, _FONT, font, 1)[0][0] for _, _, t in entries]
+    pad = int(round(8 * s))
+    y = h - pad - step * (len(entries) - 1)
+    x = pad if corner == "bottom-left" else w - pad - max(widths) - sw - int(round(6 * s))
+    for kind, rgb, text in entries:
+        cy = y - sw // 2 - 1
+        if kind == "swatch":
+            cv2.rectangle(img, (x - 1, cy - sw // 2 - 1), (x + sw, cy + sw // 2 + 1), (15, 15, 15), -1)
+            cv2.rectangle(img, (x, cy - sw // 2), (x + sw - 1, cy + sw // 2), _bgr(rgb), -1)
+        elif kind == "circle":
+            cv2.circle(img, (x + sw // 2, cy), sw // 2 + 1, (15, 15, 15), -1, cv2.LINE_AA)
+            cv2.circle(img, (x + sw // 2, cy), sw // 2, _bgr(rgb), -1, cv2.LINE_AA)
+        else:
+            r = sw // 2 + 1
+            c = (x + sw // 2, cy)
+            pts = np.array([[c[0], c[1] - r], [c[0] + r, c[1]], [c[0], c[1] + r], [c[0] - r, c[1]]], np.int32)
+            cv2.fillConvexPoly(img, pts, _bgr(rgb), cv2.LINE_AA)
+        _text(img, text, (x + sw + int(round(6 * s)), y), font, (235, 235, 235))
+        y += step
+
+
+# ================================================================================================
+# the one-call renderer
+# ================================================================================================
+def _overlay_scale(size) -> float:
+    return max(min(int(size[0]), int(size[1])) / 512.0, 0.5)
+
+
+def fit_camera(points, *, view: str | float = "front", size=(512, 512), projection: str = "orthographic",
+               colorbar: bool = False, title_lines: int = 0, **fit_kwargs) -> Camera:
+    """:meth:`Camera.fit` that keeps room for :func:`render_mesh`'s overlays: a band on the right
+    for the colour bar when ``colorbar``, and one at the top for ``title_lines`` lines of title."""
+    w, h = (int(v) for v in size)
+    s = _overlay_scale(size)
+    right = int(round(64 * s)) if colorbar else 0
+    top = int(round((4 + 18 * title_lines) * s)) if title_lines else 0
+    if right > w // 2:
+        right = 0
+    if top > h // 3:
+        top = 0
+    cam = Camera.fit(points, view=view, size=(w - right, h - top), projection=projection, **fit_kwargs)
+    if right or top:  # same view, image extended to the right and upward
+        cam = replace(cam, size=(w, h), principal=(cam.principal[0], cam.principal[1] + top))
+    return cam
+
+
+# ================================================================================================
+def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | None = None,
+                view: str | float = "front", size=(512, 512), projection: str = "orthographic",
+                pitch: float = 0.0, vertex_colors: np.ndarray | None = None, region_colors=None, region_palette=None,
+                scalars: np.ndarray | None = None, scalar_range: tuple[float, float] | None = None,
+                scalar_label: str = "", colormap: str = "viridis",
+                markers: np.ndarray | None = None, marker_labels=None, marker_color=(255, 200, 40),
+                marker_name: str = "markers",
+                extra_points: np.ndarray | None = None, extra_labels=None, extra_color=(40, 230, 255),
+                extra_name: str = "points", links: bool = False,
+                edges: np.ndarray | None = None, wire_color=(18, 18, 22), wire_alpha: float = 0.5,
+                title: str = "", shading: str = "smooth", background=None, supersample: int = 2,
+                legend: bool = True, occlusion_tolerance: float | None = None,
+                marker_radius: float | None = None) -> np.ndarray:
+    """Render a preview image of a triangle mesh.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 3)
+        Vertex positions (any linear unit).
+    triangles : ndarray, shape (T, 3), int
+        Triangles (e.g. ``FaceMesh.triangles()``); counter-clockwise = front face.
+    camera : Camera, optional
+        Fixed camera (e.g. shared by every frame of a sequence); its size wins over ``size``.
+        Default: :func:`fit_camera` of the points, markers and extra points with ``view``
+        (name or yaw in degrees), ``size`` (width, height), ``projection`` and ``pitch`` (degrees,
+        positive from above), leaving room for the title and colour bar.
+    vertex_colors : ndarray, shape (N, 3), optional
+        RGB per vertex, floats in [0, 1] or uint8.
+    region_colors : dict {name: vertex indices or Region} or list of Region, optional
+        Vertices of each region get the fixed palette colour of the region (mouth red-ish, eyes
+        blue-ish, outer border grey, others distinct; see :func:`usdface.preview.colormap.region_palette`);
+        later regions paint over earlier ones; other vertices are clay. A legend lists them.
+    region_palette : dict {name: (r, g, b)}, optional
+        Overrides of region colours (0..255).
+    scalars : ndarray, shape (N,), optional
+        A value per vertex shown through ``colormap`` with a colour bar; NaN shows grey.
+    scalar_range : (lo, hi), optional
+        Values at the ends of the colour map (default: min/max; symmetric for ``coolwarm``).
+    scalar_label : str
+        Title of the colour bar (quantity and unit, e.g. ``"displacement (cm)"``).
+    colormap : str
+        ``viridis`` (default), ``magma`` or ``coolwarm`` (diverging).
+    markers : ndarray, shape (M, 3), optional
+        Drawn as dots: filled when visible, hollow and dimmer when behind the surface. NaN rows
+        (gaps) are skipped.
+    marker_labels : sequence of M str, optional
+    marker_color : (r, g, b)
+    marker_name : str
+        Legend text of the markers.
+    extra_points, extra_labels, extra_color, extra_name :
+        A second point set (e.g. bound points vs capture markers), drawn as diamonds.
+    links : bool
+        Draw a thin line from each marker to the extra point of the same index (needs M == K).
+    edges : ndarray, shape (E, 2), int, optional
+        Wireframe overlay: the edges of the original polygons (see :func:`polygon_edges`),
+        hidden parts removed.
+    wire_color, wire_alpha :
+        Wireframe colour (r, g, b) and opacity.
+    title : str
+        Text at the top left (may have several lines).
+    shading : str
+        ``"smooth"`` (Lambert per pixel with interpolated vertex normals), ``"flat"`` (one normal
+        per triangle) or ``"unlit"`` (the vertex colours exactly, e.g. to read a scalar map).
+    background : (r, g, b), optional
+        Solid background; default a dark vertical gradient.
+    supersample : int
+        Render at this multiple of the size and average down (anti-aliasing); 1 = off.
+    legend : bool
+        Draw the region and marker legends and the colour bar.
+    occlusion_tolerance : float, optional
+        World units a marker may lie behind the surface and still count as visible; default 1%
+        of the mesh's bounding-box diagonal.
+    marker_radius : float, optional
+        Dot radius in pixels; default scales with the image (4 px at 512, at least 3.5).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), uint8
+        The image, BGR channel order (ready for :func:`write_png` / ``cv2.imwrite``).
+    """
+    cv2 = _cv2()
+    points, tris = _check_mesh(points, triangles)
+    n = points.shape[0]
+    markers = _points3(markers, "markers")
+    extra = _points3(extra_points, "extra_points")
+    marker_labels = _labels(marker_labels, 0 if markers is None else markers.shape[0], "marker")
+    extra_labels = _labels(extra_labels, 0 if extra is None else extra.shape[0], "extra point")
+    if shading not in SHADINGS:
+        raise OptionError(f"preview: shading must be one of {', '.join(SHADINGS)}; got {shading!r}")
+    ss = int(supersample)
+    if ss < 1 or ss > 8:
+        raise OptionError(f"preview: supersample must be 1..8; got {supersample}")
+    given = [k for k, v in (("vertex_colors", vertex_colors), ("region_colors", region_colors),
+                            ("scalars", scalars)) if v is not None]
+    if len(given) > 1:
+        raise OptionError(f"preview: give only one of vertex_colors, region_colors, scalars; got {', '.join(given)}")
+    if links and (markers is None or extra is None or markers.shape[0] != extra.shape[0]):
+        raise OptionError("preview: links=True needs markers and extra_points of the same length; got "
+                          f"{None if markers is None else markers.shape[0]} and {None if extra is None else extra.shape[0]}")
+    if edges is not None:
+        e = np.asarray(edges)
+        if e.ndim != 2 or e.shape[1] != 2 or (e.size and (not np.issubdtype(e.dtype, np.integer)
+                                                           or e.min() < 0 or e.max() >= n)):
+            raise MeshError(f"preview: edges must be integer pairs (E, 2) of vertex indices in 0..{n - 1}")
+        edges = e.astype(np.int64)
+    marker_rgb = _rgb(marker_color, "marker_color")
+    extra_rgb = _rgb(extra_color, "extra_color")
+    wire_rgb = _rgb(wire_color, "wire_color")
+    if camera is None:
+        camera = fit_camera([points, markers, extra], view=view, size=size, projection=projection, pitch=pitch,
+                            colorbar=scalars is not None and legend, title_lines=len(str(title).splitlines()))
+    elif not isinstance(camera, Camera):
+        raise OptionError(f"preview: camera must be a usdface.preview.Camera; got {type(camera).__name__}")
+    w, h = camera.size
+    s = _overlay_scale((w, h))  # overlay scale (text, dots); not below half size to stay legible
+    diag = float(np.linalg.norm(np.ptp(points, axis=0))) or 1.0
+    tol = 0.01 * diag if occlusion_tolerance is None else float(occlusion_tolerance)
+
+    # --- per-vertex colours ---------------------------------------------------------------------
+    legend_entries = []
+    lut = lo = hi = scalar_t = None
+    has_nan = False
+    colors = np.broadcast_to(np.asarray(CLAY), (n, 3)).copy()
+    if vertex_colors is not None:
+        vc = np.asarray(vertex_colors)
+        if vc.ndim != 2 or vc.shape[0] != n or vc.shape[1] not in (3, 4):
+            raise OptionError(f"preview: vertex_colors must have shape ({n}, 3); got {vc.shape}")
+        vc = vc[:, :3].astype(np.float64) / (255.0 if vc.dtype == np.uint8 else 1.0)
+        colors = np.clip(np.nan_to_num(vc, nan=0.5), 0.0, 1.0)
+    elif region_colors is not None:
+        items = _region_items(region_colors)
+        pal = _region_palette([it[0] for it in items], [it[1] for it in items])
+        for name, rgb in (region_palette or {}).items():
+            pal[name] = _rgb(rgb, f"region_palette[{name!r}]")
+        for name, _role, idx in items:
+            if idx.size and (not np.issubdtype(idx.dtype, np.integer) or idx.min() < 0 or idx.max() >= n):
+                raise MeshError(f"preview: region {name!r} has vertex indices outside 0..{n - 1}")
+            colors[idx.astype(np.int64)] = np.asarray(pal[name], dtype=np.float64) / 255
+            legend_entries.append(("swatch", pal[name], f"{name} ({np.unique(idx).size})"))
+    elif scalars is not None:
+        sc = np.asarray(scalars, dtype=np.float64).ravel()
+        if sc.size != n:
+            raise OptionError(f"preview: scalars must have one value per vertex ({n}); got {sc.size}")
+        lo, hi = _scalar_range(sc, colormap=colormap) if scalar_range is None else map(float, scalar_range)
+        colors = apply_colormap(sc, vrange=(lo, hi), colormap=colormap)  # also checks the range
+        lut = colormap_lut(colormap)
+        finite = np.isfinite(sc)
+        has_nan = not bool(finite.all())
+        with np.errstate(invalid="ignore"):
+            scalar_t = np.where(finite, np.clip((sc - lo) / ((hi - lo) or 1.0), 0.0, 1.0), np.nan)
+
+    # --- rasterise, shade, wireframe (at the supersampled resolution) ---------------------------
+    cam_hi = camera.resized(ss) if ss > 1 else camera
+    buf = render_buffers(points, tris, cam_hi)
+    out = _background(cam_hi.size, background)
+    bgr, pix = _shade(buf, points, tris, colors, shading=shading, specular=0.10 if scalars is None else 0.04,
+                      scalar_t=scalar_t, lut=lut)
+    out.reshape(-1, 3)[pix] = bgr
+    ref = None
+    if edges is not None:
+        ref = _neighbourhood_max(buf.depth, 1)
+        mask = _wire_mask(buf, edges, 0.004 * diag, ref)
+        a = float(np.clip(wire_alpha, 0.0, 1.0))
+        out[mask] = (out[mask] * (1 - a) + np.asarray(_bgr(wire_rgb), dtype=np.float32) * a + 0.5).astype(np.uint8)
+    if ss > 1:
+        out = cv2.resize(out, (w, h), interpolation=cv2.INTER_AREA)
+    out = np.ascontiguousarray(out)
+
+    # --- overlays at the final resolution -------------------------------------------------------
+    radius = max(4.0 * s, 3.5) if marker_radius is None else float(marker_radius)
+    font = 0.34 * s
+    sets = []
+    if markers is not None:
+        if ref is None:
+            ref = _neighbourhood_max(buf.depth, 1)
+        iv, vis = point_visibility(markers, buf, tolerance=tol, _ref=ref)
+        sets.append(("circle", markers, iv, vis, marker_labels, marker_rgb, marker_name))
+    if extra is not None:
+        if ref is None:
+            ref = _neighbourhood_max(buf.depth, 1)
+        iv, vis = point_visibility(extra, buf, tolerance=tol, _ref=ref)
+        sets.insert(0, ("diamond", extra, iv, vis, extra_labels, extra_rgb, extra_name))
+    if links:
+        a_xy, _ = camera.project(markers)
+        b_xy, _ = camera.project(extra)
+        f = 16
+        for p, q in zip(a_xy, b_xy):
+            if np.isfinite(p).all() and np.isfinite(q).all():
+                a = tuple(int(round((c - 0.5) * f)) for c in p)
+                b = tuple(int(round((c - 0.5) * f)) for c in q)
+                cv2.line(out, a, b, (230, 230, 230), 1, cv2.LINE_AA, 4)
+    point_legend = []
+    for shape, pts, iv, vis, labels, prgb, pname in sets:
+        xy, _ = camera.project(pts)
+        _draw_points(out, xy, iv, vis, labels, prgb, radius=radius, shape=shape, font=font)
+        nvis, nin = int(vis.sum()), int(iv.sum())
+        text = f"{pname}: {nvis} visible"
+        if nin - nvis:
+            text += f", {nin - nvis} hidden"
+        if pts.shape[0] - nin:
+            text += f", {pts.shape[0] - nin} off"
+        point_legend.append(("circle" if shape == "circle" else "diamond", prgb, text))
+    if lut is not None and legend:
+        _colorbar(out, lut, lo, hi, scalar_label, s, has_nan)
+    if legend:
+        _legend(out, legend_entries, s, corner="bottom-left")
+        _legend(out, point_legend[::-1], s, corner="bottom-right" if legend_entries else "bottom-left")
+    if title:
+        for k, line in enumerate(str(title).splitlines()):
+            _text(out, line, (10 * s, (22 + 18 * k) * s), (0.55 if k == 0 else 0.42) * s, (245, 245, 245))
+    return out
+
+
+def render_face(mesh, *, regions=None, wireframe: bool = False, **kwargs) -> np.ndarray:
+    """:func:`render_mesh` of a :class:`usdface.mesh.FaceMesh`: its fan triangulation, its polygon
+    edges as wireframe when ``wireframe``, and ``regions`` (list of Region or dict) as region colours."""
+    if wireframe and kwargs.get("edges") is None:
+        kwargs["edges"] = polygon_edges(mesh.face_vertex_counts, mesh.face_vertex_indices)
+    if regions is not None:
+        kwargs["region_colors"] = regions
+    return render_mesh(mesh.points, mesh.triangles(), **kwargs)
+
+
+# ================================================================================================
+# PNG output
+# ================================================================================================
+def write_png(path, image: np.ndarray) -> Path:
+    """Write an image as PNG atomically.
+
+    The image goes to a temporary ``.png`` file in the destination folder, is flushed to disk
+    (fsync), renamed over ``path`` (``os.replace``: readers see the old file or the new one, never
+    a partial one) and given mode 0644.
+
+    Parameters
+    ----------
+    path : str or Path
+        Destination, ending in ``.png``; its folder must exist.
+    image : ndarray, shape (H, W), (H, W, 3) or (H, W, 4), uint8 or uint16
+        Channel order BGR / BGRA (OpenCV's).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        The folder does not exist or is not writable, or the file cannot be replaced.
+    OptionError
+        ``path`` does not end in ``.png`` or ``image`` is not an image array.
+    ResourceError
+        The disk is full.
+    """
+    cv2 = _cv2()
+    path = Path(os.fspath(path))
+    if path.suffix.lower() != ".png":
+        raise OptionError(f"PNG output {str(path)!r} must end in .png")
+    img = np.asarray(image)
+    if not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] in (1, 3, 4))) or img.size == 0:
+        raise OptionError(f"cannot write {str(path)!r}: image must have shape (H, W), (H, W, 3) or (H, W, 4); "
+                          f"got {img.shape}")
+    if img.dtype not in (np.uint8, np.uint16):
+        raise OptionError(f"cannot write {str(path)!r}: image must be uint8 or uint16; got {img.dtype}")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"cannot write PNG {str(path)!r}: folder {str(folder)!r} does not exist")
+    if path.is_dir():
+        raise InputError(f"cannot write PNG {str(path)!r}: it is a folder")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=folder)
+    except OSError as exc:
+        raise InputError(f"cannot write PNG {str(path)!r}: {exc.strerror or exc}") from exc
+    os.close(fd)
+    try:
+        try:
+            ok = cv2.imwrite(tmp, np.ascontiguousarray(img))
+        except cv2.error as exc:
+            raise InputError(f"cannot write PNG {str(path)!r}: OpenCV failed: {exc}") from exc
+        if not ok:
+            raise InputError(f"cannot write PNG {str(path)!r}: OpenCV could not encode or write the image")
+        try:
+            with open(tmp, "rb+") as fh:
+                os.fsync(fh.fileno())
+            os.chmod(tmp, 0o644)
+            os.replace(tmp, path)
+        except OSError as exc:
+            if getattr(exc, "errno", None) == 28:  # ENOSPC
+                raise ResourceError(f"cannot write PNG {str(path)!r}: disk full") from exc
+            raise InputError(f"cannot write PNG {str(path)!r}: {exc.strerror or exc}") from exc
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    try:  # make the rename itself durable
+        dfd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:
+        pass
+    return path
+
+
+__all__ = ["BACKGROUND", "Buffers", "fit_camera", "point_visibility", "polygon_edges", "rasterize", "render_buffers",
+           "render_face", "render_mesh", "vertex_normals", "write_png"]
