@@ -47,7 +47,9 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     if filter is not None:
         from ..capture import filtering
 
-        capture = filtering.filter_noise(capture, method=filter, cutoff_hz=cutoff)
+        # a Savitzky-Golay filter is set by its window, not a cutoff frequency
+        cutoff_option = {"cutoff_hz": cutoff} if filter == "butterworth" else {}
+        capture = filtering.filter_noise(capture, method=filter, **cutoff_option)
     if resample is not None:
         capture = timing.resample(capture, rate=resample)
     if neutral == "auto":
