@@ -9,7 +9,7 @@ from ..usd.layers import check_output_path, open_stage, provenance
 def bind(mesh_path, capture_path, output, *, layout=None, auto=False, retarget="displacement") -> dict:
     """Bind the capture's markers to the mesh from a layout or automatically; write the binding layer."""
     from ..errors import OptionError
-    from ..mesh.binding import bind_auto, bind_layout
+    from ..mesh.binding import alignment_residuals, bind_auto, bind_layout
     from ..mesh.layout import read_layout
     from ..usd.capture_layer import read_capture_layer
     from ..usd.mesh_layer import read_mesh_layer, write_binding_layer
@@ -27,18 +27,23 @@ def bind(mesh_path, capture_path, output, *, layout=None, auto=False, retarget="
                       inputs={"mesh": mesh_path, "capture": capture_path, "layout": layout})
     write_binding_layer(out, binding, mesh_path=mesh_path, capture_path=capture_path, mesh_units=mesh.units,
                         prov=prov)
-    res = binding.residuals
+    # for a layout binding the bound points are the layout's (residual ~0): what tells the user how
+    # well capture and layout agree is the similarity fit of the neutral markers to those points
+    res = binding.residuals if binding.method == "auto" else alignment_residuals(binding, capture, mesh)
     order = np.argsort(res)[::-1]
     summary = {
         "output": str(out), "markers": binding.n_markers, "method": binding.method, "retarget": binding.retarget,
         "residuals": {n: float(r) for n, r in zip(binding.names, res)},
+        "residualKind": "surface" if binding.method == "auto" else "layout-fit",
         "residualMedian": float(np.median(res)), "residualMax": float(res.max()),
         "units": mesh.units,
     }
     u = mesh.units or "units"
     summary["_text"] = [
         f"wrote {out}: {binding.n_markers} markers bound ({binding.method}, retarget {binding.retarget})",
-        f"  residual median {np.median(res):.3f} {u}, max {res.max():.3f} {u} "
+        f"  {'fit residual (neutral markers vs layout points)' if binding.method == 'layout' else 'residual'} "
+        f"median {np.median(res):.3f} {u}, max {res.max():.3f} {u}, capture-to-mesh scale "
+        f"{binding.capture_rotation_scale[1] / binding.unit_scale:.3f}; largest: "
         f"({', '.join(f'{binding.names[i]} {res[i]:.2f}' for i in order[:5])})",
     ]
     return summary

@@ -35,7 +35,12 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
 
     reports: dict = {}
     if trim is not None:
-        capture = timing.trim(capture, start=trim[0], end=trim[1])
+        start, end = trim
+        if not (start <= capture.neutral_frame < (end if end is not None else capture.n_frames)):
+            # the file's neutral (its first frame) is cut away: start from the first kept frame;
+            # --neutral, applied below, still overrides
+            capture = neutral_mod.set_neutral(capture, max(int(start), 0), how="trim")
+        capture = timing.trim(capture, start=start, end=end)
     events = swaps.detect_swaps(capture)
     if events:
         reports["swaps"] = [e.summary() if hasattr(e, "summary") else e.__dict__ for e in events]
@@ -105,9 +110,13 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
                         f"{st['holdout'].get('after', {}).get('max_angle_deg', float('nan')):.2f} deg / "
                         f"{st['holdout'].get('after', {}).get('max_translation', float('nan')):.2f} {capture.units} after")
     if "gaps" in reports:
-        text.append(f"  gaps: {reports['gaps']}")
+        g = reports["gaps"]
+        text.append(f"  gaps: filled {g['filled_gaps']} ({g['filled_samples']} samples); "
+                    f"{g['unfilled_gaps']} longer than {fill_gaps} frames left invalid ({g['unfilled_samples']} samples)")
     if "neutral" in reports:
-        text.append(f"  neutral: {reports['neutral']}")
+        n = reports["neutral"]
+        text.append(f"  neutral: frame {n['frame']} chosen automatically (calm and nearest the median pose; "
+                    f"the calmest window alone was frame {n['calmest_frame']})")
     for s in reports.get("swaps", []):
         text.append(f"  possible marker swap: {s}")
     summary["_text"] = text

@@ -1,0 +1,67 @@
+"""`usdface preview`: a software-rendered PNG of a layer at a frame, or a contact sheet."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import OptionError
+
+
+def _render_one(scene, *, camera, color, reference_points, labels, title):
+    from ..preview import render_mesh
+
+    kwargs = {}
+    units = scene.mesh.units or "units"
+    if color == "regions":
+        kwargs["region_colors"] = scene.regions or None
+    elif color == "displacement":
+        kwargs.update(scalars=np.linalg.norm(scene.mesh.points - scene.rest_points, axis=1),
+                      scalar_label=f"displacement ({units})")
+    elif color == "error":
+        kwargs.update(scalars=np.linalg.norm(scene.mesh.points - reference_points, axis=1),
+                      scalar_label=f"error vs reference ({units})")
+    elif color == "hybrid-weight":
+        if scene.hybrid_weight is None:
+            raise OptionError("--color hybrid-weight: the file has no primvars:usdface:hybridWeight "
+                              "(compute hybrid distances with `usdface distances --method hybrid`)")
+        kwargs.update(scalars=scene.hybrid_weight, scalar_range=(0.0, 1.0), scalar_label="hybrid weight w")
+    if scene.markers is not None:
+        kwargs["markers"] = scene.markers
+        if labels:
+            kwargs["marker_labels"] = scene.marker_names
+    if scene.bound_points is not None:
+        kwargs["extra_points"] = scene.bound_points
+        kwargs["extra_name"] = "bound points"
+    return render_mesh(scene.mesh.points, scene.mesh.triangles(), camera=camera, title=title, **kwargs)
+
+
+def preview(path, output, *, frame=None, frames=None, view="front", size=768, color="regions", reference=None,
+            labels=False) -> dict:
+    """Render ``path`` at ``frame`` (or a contact sheet of ``frames``) to the PNG ``output``."""
+    from ..preview import contact_sheet, fit_camera, write_png
+    from ..usd.layers import open_stage
+    from ..usd.scene import read_points_at, read_scene_frame
+
+    if not str(output).lower().endswith(".png"):
+        raise OptionError(f"-o {output}: expected a .png file")
+    if color == "error" and reference is None:
+        raise OptionError("--color error needs --reference LAYER (the points to compare against)")
+    if size < 64 or size > 8192:
+        raise OptionError(f"--size {size}: expected 64..8192 pixels")
+    stage = open_stage(path, what="file")
+    times = list(frames) if frames else [frame]
+    scenes = [read_scene_frame(path, time=t, stage=stage) for t in times]
+    cell = size if len(scenes) == 1 else max(256, size // min(len(scenes), 4))
+    everything = [s.mesh.points for s in scenes] + [scenes[0].rest_points]
+    camera = fit_camera(everything, view=view, size=(cell, cell), colorbar=color not in ("regions", "none"),
+                        title_lines=2)
+    images, captions = [], []
+    name = str(path).rsplit("/", 1)[-1]
+    for s in scenes:
+        ref = read_points_at(reference, s.time) if reference else None
+        title = f"{name}  t={s.time:g}" if len(scenes) == 1 else ""
+        images.append(_render_one(s, camera=camera, color=color, reference_points=ref, labels=labels, title=title))
+        captions.append(f"t = {s.time:g}")
+    image = images[0] if len(images) == 1 else contact_sheet(images, captions, title=f"{name}  ({color})")
+    write_png(output, image)
+    return {"output": str(output), "frames": [s.time for s in scenes], "view": view, "color": color,
+            "_text": [f"wrote {output} ({image.shape[1]}x{image.shape[0]}, {len(scenes)} frame(s), {color})"]}
