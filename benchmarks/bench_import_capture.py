@@ -50,6 +50,16 @@ def usdface_parse(path):
     return read_maya_ascii(path)
 
 
+def usdface_import_to_usdc(path):
+    """The whole `usdface import-capture` job: file -> Capture -> .usdc capture layer on disk."""
+    import tempfile
+
+    from usdface.processors.import_capture import import_capture
+
+    with tempfile.TemporaryDirectory() as tmp:
+        import_capture(path, Path(tmp) / "capture.usdc")
+
+
 def time_calls(function, path, repeat: int) -> list[float]:
     """Wall-clock seconds of ``repeat`` calls of ``function(path)`` (after one warm-up call)."""
     function(path)
@@ -92,14 +102,18 @@ def main(argv=None) -> int:
           f"{capture.n_frames} frames x {capture.n_markers} markers at {capture.rate:g} Hz")
     results = {}
     for name, function in (("baseline (read + regex + np.fromstring)", baseline_parse),
-                           ("read_maya_ascii", usdface_parse)):
+                           ("read_maya_ascii", usdface_parse),
+                           ("import-capture to .usdc (read + write)", usdface_import_to_usdc)):
         times = time_calls(function, path, args.repeat)
         results[name] = times
         print(f"  {name:42s} min {min(times) * 1e3:7.1f} ms   median {statistics.median(times) * 1e3:7.1f} ms"
               f"   ({args.repeat} runs)")
-    base, ours = results.values()
+    base, ours, whole = results.values()
     print(f"ratio read_maya_ascii / baseline: {min(ours) / min(base):.2f} (min)   "
           f"{statistics.median(ours) / statistics.median(base):.2f} (median)")
+    print(f"ratio import-capture to .usdc / baseline: {min(whole) / min(base):.2f} (min)   "
+          f"{statistics.median(whole) / statistics.median(base):.2f} (median); "
+          f"reading the file is {min(base) / min(whole):.0%} of the whole import")
     return 0
 
 

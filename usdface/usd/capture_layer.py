@@ -16,7 +16,7 @@ import json
 import os
 
 import numpy as np
-from pxr import Gf, Usd, UsdGeom, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..capture.model import Capture
 from ..errors import InputError, MarkerError
@@ -91,18 +91,22 @@ def write_capture_layer(path: str | os.PathLike, capture: Capture, *, prov: dict
         points.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(Vt.Vec3fArray([Gf.Vec3f(1.0, 0.55, 0.1)]))
         points_attr = points.CreatePointsAttr()
         extent_attr = points.CreateExtentAttr()
-        lo, hi = held.min(axis=1), held.max(axis=1)
-        for f in range(capture.n_frames):
-            t = Usd.TimeCode(start + f)
-            points_attr.Set(Vt.Vec3fArray.FromNumpy(held[f]), t)
-            extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*lo[f].tolist()), Gf.Vec3f(*hi[f].tolist())]), t)
-            valid_attr.Set(Vt.BoolArray.FromNumpy(valid[f]), t)
+        extents = np.stack([held.min(axis=1), held.max(axis=1)], axis=1)  # (F, 2, 3)
         op = root.AddTransformOp()
-        if capture.head_motion is None:
-            op.Set(Gf.Matrix4d(1.0))
-        else:
+        with Sdf.ChangeBlock():  # one change notification for all samples, not one per Set
+            # bool arrays are held between samples: author validity only where it changes
+            changes = np.flatnonzero(np.r_[True, (valid[1:] != valid[:-1]).any(axis=1)])
             for f in range(capture.n_frames):
-                op.Set(_matrix_to_usd(capture.head_motion[f]), Usd.TimeCode(start + f))
+                t = Usd.TimeCode(start + f)
+                points_attr.Set(Vt.Vec3fArray.FromNumpy(held[f]), t)
+                extent_attr.Set(Vt.Vec3fArray.FromNumpy(extents[f]), t)
+            for f in changes:
+                valid_attr.Set(Vt.BoolArray.FromNumpy(valid[f]), Usd.TimeCode(start + int(f)))
+            if capture.head_motion is None:
+                op.Set(Gf.Matrix4d(1.0))
+            else:
+                for f in range(capture.n_frames):
+                    op.Set(_matrix_to_usd(capture.head_motion[f]), Usd.TimeCode(start + f))
         history = json.dumps(list(capture.history), sort_keys=True, default=str)
         set_provenance(stage, dict(prov, captureHistory=history))
     return str(path)
