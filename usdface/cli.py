@@ -42,6 +42,37 @@ def _capture_options(p: argparse.ArgumentParser) -> None:
                    help="neutral frame (0-based index after trimming) or 'auto' (default: first frame)")
 
 
+def _distance_options(p: argparse.ArgumentParser, *, with_method: bool = True) -> None:
+    g = p.add_argument_group("distances")
+    if with_method:
+        g.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"], default="hybrid",
+                       help="Euclidean (Eq. 6), geodesic (Eq. 7) or hybrid (Eq. 8); default hybrid")
+    g.add_argument("--backend", choices=["graph", "heat", "exact"], default="graph",
+                   help="geodesic back-end: shortest edge paths (the paper's), heat method, exact polyhedral")
+    g.add_argument("--region-radius", type=float, default=1.0, metavar="CM",
+                   help="hybrid: geodesic regions = vertices within this distance of the mouth/eye loops (cm)")
+    g.add_argument("--sigma", type=float, default=2.0, metavar="CM", help="hybrid: weight width (cm)")
+    g.add_argument("--threshold", type=float, default=0.6, help="hybrid: geodesic term skipped where w <= this")
+    g.add_argument("--no-pin-border", dest="pin_border", action="store_false",
+                   help="let the outer border move (default: pinned, as zero-displacement centres)")
+    g.add_argument("--components", choices=["error", "euclidean"], default="error",
+                   help="markers on different mesh components: error, or Euclidean distance across them")
+
+
+def _transfer_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("transfer")
+    g.add_argument("--rbf", choices=["paper", "interpolate"], default="interpolate",
+                   help="paper: Eqs. 1-5 as published; interpolate: exact RBF solve (default)")
+    g.add_argument("--kernel", default="gaussian",
+                   choices=["gaussian", "multiquadric", "inverse_multiquadric", "thin_plate_spline", "cubic"])
+    g.add_argument("--stiffness", metavar="WIDTH|JSON",
+                   help="kernel width in mesh units for every marker, or a JSON file {marker: width} "
+                        "(default: 1.5 x the median nearest-marker distance)")
+    g.add_argument("--regularization", type=float, default=0.0, metavar="LAMBDA",
+                   help="ridge term added to the kernel matrix (interpolate mode)")
+    g.add_argument("--polynomial", action="store_true", help="add a linear polynomial term (interpolate mode)")
+
+
 def _add_subcommands(sub) -> None:
     p = sub.add_parser("import-capture", help="import marker capture (Maya ASCII, C3D, TRC, CSV) into a capture layer",
                        description="Import marker capture (.ma, .c3d, .trc, .csv) into a .usdc capture layer "
@@ -76,6 +107,53 @@ def _add_subcommands(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="binding layer to write (.usda)")
     _add_common(p)
     p.set_defaults(func=_cmd_bind)
+
+    p = sub.add_parser("distances", help="vertex-to-marker distance matrices (euclidean, geodesic, hybrid)",
+                       description="Compute the N x M vertex-to-marker and M x M marker-to-marker distance matrices "
+                                   "(plus pinned constraint vertices) and store them on the mesh in an analysis layer.")
+    p.add_argument("--mesh", required=True, help="mesh layer")
+    p.add_argument("--binding", required=True, help="binding layer")
+    _distance_options(p)
+    p.add_argument("-o", "--output", required=True, help="analysis layer to write (.usdc)")
+    _add_common(p)
+    p.set_defaults(func=_cmd_distances)
+
+    p = sub.add_parser("transfer", help="RBF transfer of the capture onto the face -> animated points",
+                       description="Transfer the capture's marker displacements to every vertex with radial basis "
+                                   "functions over a precomputed distance matrix; write time-sampled points.")
+    p.add_argument("--mesh", required=True, help="mesh layer")
+    p.add_argument("--capture", required=True, help="capture layer")
+    p.add_argument("--binding", required=True, help="binding layer")
+    p.add_argument("--analysis", required=True, help="analysis layer (from `usdface distances`)")
+    p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"],
+                   help="which distance matrix of the analysis layer (default: its only one)")
+    _transfer_options(p)
+    p.add_argument("-o", "--output", required=True, help="animation layer to write (.usdc)")
+    _add_common(p)
+    p.set_defaults(func=_cmd_transfer)
+
+    p = sub.add_parser("run", help="the main job: mesh + capture -> OUTDIR/shot.usda",
+                       description="Import the mesh and the capture (stabilised), bind the markers, compute the "
+                                   "distances and transfer the motion; OUTDIR gets mesh.usdc capture.usdc "
+                                   "binding.usda analysis.usdc anim.usdc shot.usda summary.json.")
+    p.add_argument("--mesh", required=True, help="face mesh (OBJ, PLY, ... or USD)")
+    p.add_argument("--capture", required=True, help="capture (Maya ASCII, C3D, TRC, CSV or a capture layer)")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--layout", help="marker layout JSON")
+    src.add_argument("--auto", action="store_true", help="bind automatically")
+    p.add_argument("--retarget", choices=["displacement", "similarity"], default="displacement")
+    p.add_argument("--mesh-units", choices=["mm", "cm", "dm", "m", "in", "ft"], help="units of the mesh file")
+    p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"], default="hybrid",
+                   help="distance method (default hybrid)")
+    _distance_options(p, with_method=False)
+    _transfer_options(p)
+    _capture_options(p)
+    p.set_defaults(stabilize="auto")
+    p.add_argument("--no-stabilize", dest="stabilize", action="store_const", const=None,
+                   help="keep the head motion in the marker displacements")
+    p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="output folder (created if missing)")
+    _add_common(p)
+    p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("info", help="what a layer holds: prims, markers, frames, rate, units, schemas",
                        description="Summarise a USD layer written by usdface (or any USD file).")
@@ -147,6 +225,35 @@ def _cmd_bind(args) -> dict:
     from .processors.bind import bind
 
     return bind(args.mesh, args.capture, args.output, layout=args.layout, auto=args.auto, retarget=args.retarget)
+
+
+def _cmd_distances(args) -> dict:
+    from .processors.distances import distances
+
+    return distances(args.mesh, args.binding, args.output, method=args.method, backend=args.backend,
+                     region_radius_cm=args.region_radius, sigma_cm=args.sigma, threshold=args.threshold,
+                     pin_border=args.pin_border, components=args.components)
+
+
+def _cmd_transfer(args) -> dict:
+    from .processors.transfer import transfer
+
+    return transfer(args.mesh, args.capture, args.binding, args.analysis, args.output, rbf=args.rbf,
+                    kernel=args.kernel, stiffness=args.stiffness, regularization=args.regularization,
+                    polynomial=args.polynomial, method=args.method)
+
+
+def _cmd_run(args) -> dict:
+    from .processors.run import run
+
+    return run(args.mesh, args.capture, args.output, layout=args.layout, auto=args.auto, method=args.method,
+               backend=args.backend, rbf=args.rbf, kernel=args.kernel, stiffness=args.stiffness,
+               regularization=args.regularization, polynomial=args.polynomial, retarget=args.retarget,
+               mesh_units=args.mesh_units, units=args.units, rate=args.rate, up_axis=args.up_axis,
+               stabilize=_stabilize_arg(args.stabilize), fill_gaps=args.fill_gaps, filter=args.filter,
+               cutoff=args.cutoff, trim=args.trim, neutral=_neutral_arg(args.neutral),
+               region_radius_cm=args.region_radius, sigma_cm=args.sigma, threshold=args.threshold,
+               pin_border=args.pin_border, components=args.components)
 
 
 def _cmd_info(args) -> dict:

@@ -146,11 +146,12 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
         written = 0
         for frames, disp in chunks:
             pts = disp + rest[None]
-            lo, hi = pts.min(axis=1), pts.max(axis=1)
-            for k, f in enumerate(range(frames.start, frames.stop)):
-                t = Usd.TimeCode(start + f)
-                points_attr.Set(Vt.Vec3fArray.FromNumpy(pts[k]), t)
-                extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*lo[k].tolist()), Gf.Vec3f(*hi[k].tolist())]), t)
+            extents = np.stack([pts.min(axis=1), pts.max(axis=1)], axis=1)
+            with Sdf.ChangeBlock():
+                for k, f in enumerate(range(frames.start, frames.stop)):
+                    t = Usd.TimeCode(start + f)
+                    points_attr.Set(Vt.Vec3fArray.FromNumpy(pts[k]), t)
+                    extent_attr.Set(Vt.Vec3fArray.FromNumpy(extents[k]), t)
             written += frames.stop - frames.start
             layer.Save()  # appends in place: memory stays flat on long takes
             if progress is not None:
@@ -161,12 +162,23 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
     return str(path)
 
 
-def write_shot_stage(path, *, layers: list, capture_path=None, rate: float, start: float, end: float, units,
-                     default_prim: str = "Face") -> str:
-    """A small .usda composing the given layers (strongest first) with relative asset paths."""
+def write_shot_stage(path, *, layers: list, rate: float, start: float, end: float, units,
+                     default_prim: str = "Face", stabilized_capture: bool = False) -> str:
+    """A small .usda composing the given layers (strongest first) with relative asset paths.
+
+    With ``stabilized_capture`` the markers are shown head-stabilised (the capture's head-motion op
+    is dropped from /Capture's op order), so they stay on the stabilised face animation.
+    """
     with AtomicLayer(path) as stage:
         root = stage.GetRootLayer()
         for layer in layers:
             root.subLayerPaths.append(relative_asset_path(layer, path))
         set_stage_metadata(stage, units=units, default_prim=default_prim, rate=rate, start=start, end=end)
+        if stabilized_capture:
+            cap = stage.GetPrimAtPath("/Capture")
+            if cap:
+                order = [op for op in UsdGeom.Xformable(cap).GetOrderedXformOps()
+                         if op.GetOpName() != "xformOp:transform"]
+                over = stage.OverridePrim("/Capture")
+                UsdGeom.Xformable(over).SetXformOpOrder(order)
     return str(path)

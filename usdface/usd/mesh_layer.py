@@ -82,19 +82,24 @@ def write_mesh_layer(path: str | os.PathLike, mesh: FaceMesh, regions: list[Regi
     return str(path)
 
 
+MESH_SCHEMAS = ("FaceRegionAPI", "FaceMarkerBindingAPI", "FaceTransferAPI", "FaceDistanceMatrixAPI")
+
+
 def find_mesh(stage: Usd.Stage, *, what: str = "mesh") -> Usd.Prim:
-    """The face mesh prim: one with usdface schemas applied, else the default prim's first Mesh."""
-    meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
-    for prim in meshes:
-        if any(s.startswith(("FaceRegionAPI", "FaceMarkerBindingAPI", "FaceTransferAPI")) for s in prim.GetAppliedSchemas()):
+    """The face mesh prim: one with usdface schemas applied (also an ``over`` in a layer of its
+    own, such as an analysis layer), else the default prim's first Mesh, else the first Mesh."""
+    every = list(Usd.PrimRange.Stage(stage, Usd.PrimAllPrimsPredicate))
+    for prim in every:
+        if any(s.startswith(MESH_SCHEMAS) for s in prim.GetAppliedSchemas()):
             return prim
     root = stage.GetDefaultPrim()
     if root:
         for prim in Usd.PrimRange(root):
             if prim.IsA(UsdGeom.Mesh):
                 return prim
-    if meshes:
-        return meshes[0]
+    for prim in every:
+        if prim.IsA(UsdGeom.Mesh):
+            return prim
     raise InputError(f"{what} {stage.GetRootLayer().identifier}: no Mesh prim (expected {GEOM_PRIM})")
 
 

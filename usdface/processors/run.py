@@ -1,0 +1,97 @@
+"""`usdface run`: the main job, raw files (or USD) to a shot that plays in usdview.
+
+import-mesh -> import-capture (stabilised) -> bind -> distances -> transfer -> shot.usda.
+All files are written into a private folder inside OUTDIR and moved into place only when every
+step has succeeded, so a failed run leaves OUTDIR as it was.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+from ..errors import OptionError
+
+OUTPUT_FILES = ("mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc", "anim.usdc", "shot.usda",
+                "summary.json")
+
+
+def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", backend="graph",
+        rbf="interpolate", kernel="gaussian", stiffness=None, regularization=0.0, polynomial=False,
+        retarget="displacement", mesh_units=None, units=None, rate=None, up_axis=None, stabilize="auto",
+        fill_gaps=None, filter=None, cutoff=8.0, trim=None, neutral=None, region_radius_cm=1.0,
+        sigma_cm=2.0, threshold=0.6, pin_border=True, components="error") -> dict:
+    """Run the whole pipeline; returns the summary (also written to OUTDIR/summary.json)."""
+    from .bind import bind
+    from .distances import distances
+    from .import_capture import import_capture
+    from .import_mesh import import_mesh
+    from .transfer import transfer
+    from ..usd.analysis_layer import write_shot_stage
+
+    if (layout is None) == (not auto):
+        raise OptionError("run: give exactly one of --layout LAYOUT.json or --auto")
+    for label, path in (("--mesh", mesh), ("--capture", capture), ("--layout", layout)):
+        if path is not None and not Path(path).is_file():
+            raise OptionError(f"{label} {path}: no such file")
+    out = Path(out_dir)
+    if not out.parent.is_dir():
+        raise OptionError(f"-o {out}: folder {out.parent} does not exist")
+    out.mkdir(exist_ok=True)
+    started = time.perf_counter()
+    steps: dict = {}
+    work = Path(tempfile.mkdtemp(prefix=".usdface-run-", dir=out))
+    try:
+        f = {name: work / name for name in OUTPUT_FILES}
+        t = time.perf_counter()
+        steps["import-mesh"] = import_mesh(mesh, f["mesh.usdc"], units=mesh_units)
+        steps["import-capture"] = import_capture(capture, f["capture.usdc"], units=units, rate=rate,
+                                                 up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
+                                                 filter=filter, cutoff=cutoff, trim=trim, neutral=neutral)
+        steps["bind"] = bind(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], layout=layout, auto=auto,
+                             retarget=retarget)
+        steps["distances"] = distances(f["mesh.usdc"], f["binding.usda"], f["analysis.usdc"], method=method,
+                                       backend=backend, region_radius_cm=region_radius_cm, sigma_cm=sigma_cm,
+                                       threshold=threshold, pin_border=pin_border, components=components)
+        steps["transfer"] = transfer(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], f["analysis.usdc"],
+                                     f["anim.usdc"], rbf=rbf, kernel=kernel, stiffness=stiffness,
+                                     regularization=regularization, polynomial=polynomial, method=method)
+        cap = steps["import-capture"]
+        write_shot_stage(f["shot.usda"], layers=[f["anim.usdc"], f["analysis.usdc"], f["binding.usda"]],
+                         rate=cap["rate"], start=cap["startTimeCode"],
+                         end=cap["startTimeCode"] + cap["frames"] - 1, units=steps["import-mesh"]["units"],
+                         stabilized_capture=cap["stabilized"])
+        summary = {
+            "outputDir": str(out), "shot": str(out / "shot.usda"), "mesh": str(mesh), "capture": str(capture),
+            "method": method, "backend": backend if method != "euclidean" else None, "rbf": rbf, "kernel": kernel,
+            "frames": cap["frames"], "rate": cap["rate"], "markers": cap["markers"],
+            "vertices": steps["import-mesh"]["points"],
+            "steps": {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in steps.items()},
+            "seconds": round(time.perf_counter() - started, 3),
+        }
+        # paths in the summary name the final files, not the private work folder
+        text = json.dumps(summary, indent=2, default=str).replace(str(work), str(out))
+        f["summary.json"].write_text(text + "\n")
+        for name in OUTPUT_FILES:
+            os.replace(work / name, out / name)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    summary = json.loads(text)
+    b = summary["steps"]["bind"]
+    tr = summary["steps"]["transfer"]
+    summary["_text"] = [
+        f"shot: {out / 'shot.usda'}  ({summary['frames']} frames at {summary['rate']:g} Hz, "
+        f"{summary['vertices']} vertices, {summary['markers']} markers)",
+        f"  capture: {cap['markers']} markers, {cap['invalidSamples']} invalid samples, "
+        f"stabilised: {'yes' if cap['stabilized'] else 'no'}",
+        f"  binding: {b['method']}, residual median {b['residualMedian']:.3f} max {b['residualMax']:.3f} {b['units']}",
+        f"  distances: {method}{'/' + backend if method != 'euclidean' else ''} in "
+        f"{summary['steps']['distances']['seconds']:.2f} s",
+        f"  transfer: {tr['mode']} {tr['kernel']}, width {tr['widthMedian']:.3g} {tr['units']}, "
+        f"{tr['seconds']:.2f} s",
+        f"  total {summary['seconds']:.1f} s; files: {', '.join(OUTPUT_FILES)}",
+    ]
+    return summary

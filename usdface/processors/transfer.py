@@ -1,0 +1,116 @@
+"""`usdface transfer`: RBF transfer of capture motion onto the face -> animation layer (.usdc)."""
+from __future__ import annotations
+
+import json
+import logging
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MarkerError, OptionError, list_names
+from ..progress import progress
+from ..usd.layers import check_output_path, open_stage, provenance
+
+log = logging.getLogger("usdface")
+
+DEFAULT_CHUNK_FRAMES = 64
+
+
+def parse_stiffness(value):
+    """--stiffness: None, a number (mesh units, every marker), or a JSON file {marker: width}."""
+    if value is None or isinstance(value, (int, float, dict)):
+        return value
+    try:
+        return float(value)
+    except ValueError:
+        pass
+    path = Path(value)
+    if not path.is_file():
+        raise OptionError(f"--stiffness {value}: expected a width in mesh units or a JSON file {{marker: width}}")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise OptionError(f"--stiffness {value}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise OptionError(f"--stiffness {value}: expected a JSON object {{marker: width}}")
+    return data
+
+
+def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rbf="interpolate",
+             kernel="gaussian", stiffness=None, regularization=0.0, polynomial=False, method=None,
+             all_invalid="error", chunk_frames=DEFAULT_CHUNK_FRAMES) -> dict:
+    """Transfer the capture's marker displacements to every vertex; write the animation layer."""
+    from ..capture.retarget import marker_displacements
+    from ..rbf.transfer import RBFTransfer
+    from ..usd.analysis_layer import read_distance_matrix, write_animation_layer
+    from ..usd.capture_layer import read_capture_layer
+    from ..usd.mesh_layer import read_binding, read_mesh_layer
+
+    out = check_output_path(output)
+    mesh, _ = read_mesh_layer(mesh_path)
+    capture = read_capture_layer(capture_path)
+    binding = read_binding(open_stage(binding_path, what="binding"), source=str(binding_path))
+    dm = read_distance_matrix(analysis_path, method=method)
+    if tuple(dm.marker_names) != tuple(binding.names):
+        raise MarkerError(f"analysis {analysis_path} was computed for markers {list_names(dm.marker_names)}, "
+                          f"binding {binding_path} binds {list_names(binding.names)}; recompute the distances")
+    if dm.vertex_to_centre.shape[0] != mesh.n_points:
+        raise OptionError(f"analysis {analysis_path} has {dm.vertex_to_centre.shape[0]} vertices, mesh {mesh_path} "
+                          f"has {mesh.n_points}: they belong to different meshes")
+    disp = marker_displacements(capture, binding.names, binding.displacement_transform())
+    centre_points = np.concatenate([binding.surface_points(mesh.points), mesh.points[dm.constraint_vertices]])
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # the same advice is logged once below
+        solver = RBFTransfer(dm.vertex_to_centre, dm.centre_to_centre, mode=rbf, kernel=kernel,
+                             widths=parse_stiffness(stiffness), polynomial=polynomial,
+                             regularization=regularization, n_markers=binding.n_markers,
+                             centre_points=centre_points, vertex_points=mesh.points, marker_names=binding.names,
+                             all_invalid=all_invalid).fit()
+    advice = solver.advice
+    if advice:
+        log.warning("%s", advice)
+    settings = {
+        "mode": rbf, "kernel": _schema_kernel(solver.kernel), "distanceMethod": dm.method,
+        "markerNames": list(binding.names), "widths": solver.widths[: binding.n_markers],
+        "regularization": regularization, "polynomial": polynomial,
+        "conditionNumber": solver.condition_number,
+        "parameters": {"constraintVertices": int(dm.constraint_vertices.size), "allInvalid": all_invalid,
+                       "retarget": binding.retarget, "distanceBackend": dm.backend},
+    }
+    options = {"rbf": rbf, "kernel": kernel, "stiffness": stiffness, "regularization": regularization,
+               "polynomial": polynomial, "method": dm.method, "all_invalid": all_invalid}
+    prov = provenance("transfer", options=options, inputs={"mesh": mesh_path, "capture": capture_path,
+                                                           "binding": binding_path, "analysis": analysis_path})
+    bar = progress(total=capture.n_frames, desc="transfer", unit="frame")
+    try:
+        write_animation_layer(out, solver.iter_chunks(disp, chunk_frames=chunk_frames), mesh_path=mesh_path,
+                              rest_points=mesh.points, start=capture.start_frame, rate=capture.rate,
+                              n_frames=capture.n_frames, units=mesh.units, transfer=settings, prov=prov, progress=bar)
+    finally:
+        bar.close()
+    seconds = time.perf_counter() - t0
+    cache = solver.cache_info() if hasattr(solver, "cache_info") else {}
+    invalid_frames = int((~np.isfinite(disp).all(axis=2)).any(axis=1).sum())
+    summary = {
+        "output": str(out), "frames": capture.n_frames, "vertices": mesh.n_points, "markers": binding.n_markers,
+        "constraintCentres": int(dm.constraint_vertices.size), "mode": rbf, "kernel": solver.kernel,
+        "distanceMethod": dm.method, "conditionNumber": solver.condition_number, "advice": advice,
+        "widthMedian": float(np.median(solver.widths[: binding.n_markers])), "units": mesh.units,
+        "framesWithInvalidMarkers": invalid_frames, "validityPatterns": cache, "seconds": round(seconds, 3),
+    }
+    cond = f", condition number {solver.condition_number:.3g}" if solver.condition_number else ""
+    summary["_text"] = [
+        f"wrote {out}: {capture.n_frames} frames x {mesh.n_points} points ({rbf} {solver.kernel} on {dm.method} "
+        f"distances, width {summary['widthMedian']:.3g} {mesh.units}{cond}) in {seconds:.2f} s",
+    ] + ([f"  {invalid_frames} frames re-solved with their valid markers"] if invalid_frames else []) \
+      + ([f"  advice: {advice}"] if advice else [])
+    return summary
+
+
+def _schema_kernel(name: str) -> str:
+    """RBF engine kernel name -> the FaceTransferAPI token."""
+    return {"inverse_multiquadric": "inverseMultiquadric", "thin_plate_spline": "thinPlate",
+            "thin_plate": "thinPlate"}.get(name, name)
