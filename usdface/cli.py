@@ -68,8 +68,10 @@ def _transfer_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--stiffness", metavar="WIDTH|JSON",
                    help="kernel width in mesh units for every marker, or a JSON file {marker: width} "
                         "(default: 1.5 x the median nearest-marker distance)")
-    g.add_argument("--regularization", type=float, default=0.0, metavar="LAMBDA",
-                   help="ridge term added to the kernel matrix (interpolate mode)")
+    g.add_argument("--regularization", type=_regularization_arg, default="auto", metavar="LAMBDA|auto",
+                   help="ridge term added to the kernel matrix (interpolate mode). auto (default): exact "
+                        "interpolation unless it amplifies marker motion more than 25x (geodesic kernels can), "
+                        "then the lambda with the least amplification")
     g.add_argument("--polynomial", action="store_true", help="add a linear polynomial term (interpolate mode)")
 
 
@@ -190,6 +192,18 @@ def _add_subcommands(sub) -> None:
 
 
 # -- command implementations (parse -> processor -> report) ----------------------------------------
+
+def _regularization_arg(value):
+    if value == "auto":
+        return value
+    try:
+        lam = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0 or 'auto'; got {value!r}") from None
+    if not lam >= 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0 or 'auto'; got {value!r}")
+    return lam
+
 
 def _stabilize_arg(value):
     if value is None or value == "auto":

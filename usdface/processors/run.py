@@ -20,7 +20,7 @@ OUTPUT_FILES = ("mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc", "a
 
 
 def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", backend="graph",
-        rbf="interpolate", kernel="gaussian", stiffness=None, regularization=0.0, polynomial=False,
+        rbf="interpolate", kernel="gaussian", stiffness=None, regularization="auto", polynomial=False,
         retarget="displacement", mesh_units=None, units=None, rate=None, up_axis=None, stabilize="auto",
         fill_gaps=None, filter=None, cutoff=8.0, trim=None, neutral=None, region_radius_cm=1.0,
         sigma_cm=2.0, threshold=0.6, pin_border=True, components="error") -> dict:

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import MarkerError, OptionError, list_names
 from ..progress import progress
+from ..rbf.stability import DEFAULT_MAX_AMPLIFICATION
 from ..usd.layers import check_output_path, open_stage, provenance
 
 log = logging.getLogger("usdface")
@@ -39,10 +40,12 @@ def parse_stiffness(value):
 
 
 def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rbf="interpolate",
-             kernel="gaussian", stiffness=None, regularization=0.0, polynomial=False, method=None,
-             all_invalid="error", chunk_frames=DEFAULT_CHUNK_FRAMES) -> dict:
+             kernel="gaussian", stiffness=None, regularization="auto", polynomial=False, method=None,
+             all_invalid="error", chunk_frames=DEFAULT_CHUNK_FRAMES,
+             max_amplification=DEFAULT_MAX_AMPLIFICATION) -> dict:
     """Transfer the capture's marker displacements to every vertex; write the animation layer."""
     from ..capture.retarget import marker_displacements
+    from ..rbf.stability import amplification, fit_stable, marker_residual
     from ..rbf.transfer import RBFTransfer
     from ..usd.analysis_layer import read_distance_matrix, write_animation_layer
     from ..usd.capture_layer import read_capture_layer
@@ -62,13 +65,35 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
     disp = marker_displacements(capture, binding.names, binding.displacement_transform())
     centre_points = np.concatenate([binding.surface_points(mesh.points), mesh.points[dm.constraint_vertices]])
     t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # the same advice is logged once below
-        solver = RBFTransfer(dm.vertex_to_centre, dm.centre_to_centre, mode=rbf, kernel=kernel,
-                             widths=parse_stiffness(stiffness), polynomial=polynomial,
-                             regularization=regularization, n_markers=binding.n_markers,
-                             centre_points=centre_points, vertex_points=mesh.points, marker_names=binding.names,
-                             all_invalid=all_invalid).fit()
+    widths = parse_stiffness(stiffness)
+
+    def make_solver(lam):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # the same advice is logged once below
+            return RBFTransfer(dm.vertex_to_centre, dm.centre_to_centre, mode=rbf, kernel=kernel, widths=widths,
+                               polynomial=polynomial, regularization=lam, n_markers=binding.n_markers,
+                               centre_points=centre_points, vertex_points=mesh.points,
+                               marker_names=binding.names, all_invalid=all_invalid,
+                               collocation=(binding.triangle_vertices, binding.barycentrics)
+                               if rbf == "interpolate" else None).fit()
+
+    choice = None
+    if rbf == "interpolate" and regularization == "auto":
+        solver, choice = fit_stable(make_solver, max_amplification=max_amplification)
+        regularization = choice.regularization
+        if choice.regularized:
+            log.warning("the exact interpolant on %s distances amplifies marker motion %.0fx (the kernel matrix is "
+                        "not positive definite on these distances); regularization %.3g chosen automatically "
+                        "(amplification %.1fx; markers are then reproduced approximately)", dm.method,
+                        choice.exact_amplification, choice.regularization, choice.amplification)
+    else:
+        regularization = 0.0 if regularization == "auto" else float(regularization)
+        solver = make_solver(regularization)
+    amp = amplification(solver.transfer_matrix)
+    miss = marker_residual(solver, binding.triangle_vertices, binding.barycentrics)
+    if amp > max_amplification and (choice is None or not choice.regularized):
+        log.warning("the transfer amplifies marker motion up to %.0fx at some vertices; consider "
+                    "--regularization auto, a smaller --stiffness, or --method euclidean", amp)
     advice = solver.advice
     if advice:
         log.warning("%s", advice)
@@ -78,6 +103,10 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
         "regularization": regularization, "polynomial": polynomial,
         "conditionNumber": solver.condition_number,
         "parameters": {"constraintVertices": int(dm.constraint_vertices.size), "allInvalid": all_invalid,
+                       "amplification": amp, "markerResidual": miss,
+                       "regularizationAuto": None if choice is None else {
+                           "exactAmplification": choice.exact_amplification,
+                           "tried": {str(k): v for k, v in choice.tried.items()}},
                        "retarget": binding.retarget, "distanceBackend": dm.backend},
     }
     options = {"rbf": rbf, "kernel": kernel, "stiffness": stiffness, "regularization": regularization,
@@ -99,9 +128,14 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
         "constraintCentres": int(dm.constraint_vertices.size), "mode": rbf, "kernel": solver.kernel,
         "distanceMethod": dm.method, "conditionNumber": solver.condition_number, "advice": advice,
         "widthMedian": float(np.median(solver.widths[: binding.n_markers])), "units": mesh.units,
+        "regularization": regularization, "amplification": amp, "markerResidual": miss,
+        "exactAmplification": None if choice is None else choice.exact_amplification,
         "framesWithInvalidMarkers": invalid_frames, "validityPatterns": cache, "seconds": round(seconds, 3),
     }
     cond = f", condition number {solver.condition_number:.3g}" if solver.condition_number else ""
+    cond += f", amplification {amp:.1f}x" + (f", regularization {regularization:.3g} chosen automatically: "
+                                              f"markers reproduced within {100 * miss:.0f}%"
+                                              if choice is not None and choice.regularized else "")
     summary["_text"] = [
         f"wrote {out}: {capture.n_frames} frames x {mesh.n_points} points ({rbf} {solver.kernel} on {dm.method} "
         f"distances, width {summary['widthMedian']:.3g} {mesh.units}{cond}) in {seconds:.2f} s",

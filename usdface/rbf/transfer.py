@@ -155,6 +155,13 @@ class RBFTransfer:
         Multiple of the marker spacing used by the default width rule.
     all_invalid : {"error", "hold", "zero"}
         What to do with frames where every marker is invalid.
+    collocation : (tri (M, 3) int, bary (M, 3) float), optional
+        Interpolate mode: impose the interpolation conditions on the field as the mesh shows it —
+        marker j's row of the system is the barycentric combination (``bary[j]``) of the kernel
+        rows of the vertices ``tri[j]`` of its triangle, instead of ``phi(D_cc[j])``. The vertex
+        displacements then reproduce every marker exactly at its bound surface point, whatever the
+        distance (hybrid distances jump where w crosses the threshold, so a marker's own distance
+        row and its neighbouring vertices' rows can disagree). Constraint centres keep their rows.
 
     Raises
     ------
@@ -189,6 +196,7 @@ class RBFTransfer:
         marker_names: Sequence[str] | None = None,
         width_factor: float = DEFAULT_WIDTH_FACTOR,
         all_invalid: str = "error",
+        collocation=None,
     ) -> None:
         if mode not in MODES:
             raise OptionError(f"mode: expected one of {', '.join(MODES)}; got {mode!r}")
@@ -271,6 +279,18 @@ class RBFTransfer:
         self.widths = resolve_widths(widths, D_cc, M, marker_names=marker_names, factor=width_factor)
         self.widths.setflags(write=False)
 
+        self._colloc = None
+        if collocation is not None:
+            if mode != "interpolate":
+                raise OptionError("collocation applies to mode='interpolate' only")
+            tri = np.asarray(collocation[0], dtype=np.int64)
+            bary = np.asarray(collocation[1], dtype=np.float64)
+            if tri.shape != (M, 3) or bary.shape != (M, 3):
+                raise _shape_error("collocation", f"two arrays of shape (M, 3) = ({M}, 3)", tri)
+            if tri.min() < 0 or tri.max() >= N:
+                raise InputError(f"collocation: triangle vertex indices outside 0..{N - 1}")
+            self._colloc = (tri, bary)
+
         self._fitted = False
         self._B64 = self._B32 = None
         self._cond: float | None = None
@@ -293,6 +313,10 @@ class RBFTransfer:
         """The full (all markers valid) system matrix A (C or C + 4 square)."""
         phi_cc = self._phi(self._D_cc, self.widths)  # column k uses the width of centre k
         C = self.n_centres
+        if self._colloc is not None:
+            tri, bary = self._colloc
+            rows = self._phi(self._D_vc[tri.ravel()], self.widths).reshape(tri.shape[0], 3, C)
+            phi_cc[: tri.shape[0]] = np.einsum("mt,mtc->mc", bary, rows)
         if not self.polynomial:
             A = phi_cc
             A[np.diag_indices(C)] += self.regularization
