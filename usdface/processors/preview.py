@@ -6,7 +6,15 @@ import numpy as np
 from ..errors import OptionError
 
 
-def _render_one(scene, *, camera, color, reference_points, labels, title):
+def _scalars(scene, color, reference_points):
+    if color == "displacement":
+        return np.linalg.norm(scene.mesh.points - scene.rest_points, axis=1)
+    if color == "error":
+        return np.linalg.norm(scene.mesh.points - reference_points, axis=1)
+    return None
+
+
+def _render_one(scene, *, camera, color, reference_points, labels, title, scalar_range=None):
     from ..preview import render_mesh
 
     kwargs = {}
@@ -14,11 +22,11 @@ def _render_one(scene, *, camera, color, reference_points, labels, title):
     if color == "regions":
         kwargs["region_colors"] = scene.regions or None
     elif color == "displacement":
-        kwargs.update(scalars=np.linalg.norm(scene.mesh.points - scene.rest_points, axis=1),
-                      scalar_label=f"displacement ({units})")
+        kwargs.update(scalars=_scalars(scene, color, None), scalar_label=f"displacement ({units})",
+                      scalar_range=scalar_range)
     elif color == "error":
-        kwargs.update(scalars=np.linalg.norm(scene.mesh.points - reference_points, axis=1),
-                      scalar_label=f"error vs reference ({units})")
+        kwargs.update(scalars=_scalars(scene, color, reference_points), scalar_label=f"error vs reference ({units})",
+                      scalar_range=scalar_range)
     elif color == "hybrid-weight":
         if scene.hybrid_weight is None:
             raise OptionError("--color hybrid-weight: the file has no primvars:usdface:hybridWeight "
@@ -56,10 +64,15 @@ def preview(path, output, *, frame=None, frames=None, view="front", size=768, co
                         title_lines=2)
     images, captions = [], []
     name = str(path).rsplit("/", 1)[-1]
-    for s in scenes:
-        ref = read_points_at(reference, s.time) if reference else None
+    refs = [read_points_at(reference, s.time) if reference else None for s in scenes]
+    shared = None
+    if color in ("displacement", "error"):  # one colour scale for every frame of a sheet
+        top = max(float(_scalars(s, color, r).max()) for s, r in zip(scenes, refs))
+        shared = (0.0, top if top > 0 else 1.0)
+    for s, ref in zip(scenes, refs):
         title = f"{name}  t={s.time:g}" if len(scenes) == 1 else ""
-        images.append(_render_one(s, camera=camera, color=color, reference_points=ref, labels=labels, title=title))
+        images.append(_render_one(s, camera=camera, color=color, reference_points=ref, labels=labels, title=title,
+                                  scalar_range=shared))
         captions.append(f"t = {s.time:g}")
     image = images[0] if len(images) == 1 else contact_sheet(images, captions, title=f"{name}  ({color})")
     write_png(output, image)
