@@ -53,8 +53,9 @@ def _distance_options(p: argparse.ArgumentParser, *, with_method: bool = True) -
                    help="hybrid: geodesic regions = vertices within this distance of the mouth/eye loops (cm)")
     g.add_argument("--sigma", type=float, default=2.0, metavar="CM", help="hybrid: weight width (cm)")
     g.add_argument("--threshold", type=float, default=0.6, help="hybrid: geodesic term skipped where w <= this")
-    g.add_argument("--no-pin-border", dest="pin_border", action="store_false",
-                   help="let the outer border move (default: pinned, as zero-displacement centres)")
+    g.add_argument("--pin-border", choices=["upper", "all", "none"], default="upper",
+                   help="outer border as zero-displacement centres: above the mouth corners (default; the "
+                        "jaw's border moves with the jaw), all of it, or none")
     g.add_argument("--components", choices=["error", "euclidean"], default="error",
                    help="markers on different mesh components: error, or Euclidean distance across them")
 
@@ -67,7 +68,7 @@ def _transfer_options(p: argparse.ArgumentParser) -> None:
                    choices=["gaussian", "multiquadric", "inverse_multiquadric", "thin_plate_spline", "cubic"])
     g.add_argument("--stiffness", metavar="WIDTH|JSON",
                    help="kernel width in mesh units for every marker, or a JSON file {marker: width} "
-                        "(default: 1.5 x the median nearest-marker distance)")
+                        "(default: 1.1 x the median nearest-marker distance, about 2 cm on a face)")
     g.add_argument("--regularization", type=_regularization_arg, default="auto", metavar="LAMBDA|auto",
                    help="ridge term added to the kernel matrix (interpolate mode). auto (default): exact "
                         "interpolation unless it amplifies marker motion more than 25x (geodesic kernels can), "
@@ -302,6 +303,7 @@ def _cmd_plugin_path(args) -> dict:
 #: processor modules that add their own subcommands with ``register_cli(subparsers)``; each
 #: subcommand's ``func(args) -> dict`` returns the summary (``_text`` lines, ``_exit`` code)
 PLUGIN_COMMANDS = (
+    "usdface.processors.evaluate",
 )
 
 

@@ -18,13 +18,13 @@ def test_median_spacing_and_default_rule():
     assert S.median_marker_spacing(D) == 2.0
     pts = np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1)
     assert S.median_marker_spacing_from_points(pts) == pytest.approx(2.0)
-    assert S.DEFAULT_WIDTH_FACTOR == 1.5
-    assert S.default_width(D, 5) == pytest.approx(3.0)
+    assert S.DEFAULT_WIDTH_FACTOR == 1.1
+    assert S.default_width(D, 5) == pytest.approx(2.2)
     # only the marker block counts: a constraint centre very close to marker 0 changes nothing
     Dc = np.zeros((6, 6))
     Dc[:5, :5] = D
     Dc[5, :5] = Dc[:5, 5] = D[0] + 0.01
-    assert S.default_width(Dc, 5) == pytest.approx(3.0)
+    assert S.default_width(Dc, 5) == pytest.approx(2.2)
 
 
 def test_spacing_uses_row_minimum_for_asymmetric_distances():
@@ -36,7 +36,7 @@ def test_resolve_widths_forms():
     D, _ = _line([1.0, 2.0, 4.0, 8.0])
     C, M = 5, 4  # last centre is a constraint centre
     names = ["a", "b", "c", "d"]
-    np.testing.assert_allclose(S.resolve_widths(None, D, M), 1.5 * np.median([1, 1, 2, 4]))
+    np.testing.assert_allclose(S.resolve_widths(None, D, M), 1.1 * np.median([1, 1, 2, 4]))
     np.testing.assert_allclose(S.resolve_widths(2.0, D, M), np.full(C, 2.0))
     w = S.resolve_widths([1, 2, 3, 4], D, M)
     np.testing.assert_allclose(w[:4], [1, 2, 3, 4])

@@ -18,7 +18,7 @@ GEODESIC_ROLES = ("mouth", "eye", "geodesic")
 
 
 def distances(mesh_path, binding_path, output, *, method="hybrid", backend="graph", region_radius_cm=1.0,
-              sigma_cm=2.0, threshold=0.6, pin_border=True, components="error", t_coef="auto") -> dict:
+              sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error", t_coef="auto") -> dict:
     """Compute the N x C and C x C distance matrices with ``method``; write the analysis layer."""
     from ..distance import (GeodesicSolver, euclidean_at_sources, euclidean_distances, hybrid_distances)
     from ..mesh.regions import constraint_vertices

@@ -23,7 +23,7 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         rbf="interpolate", kernel="gaussian", stiffness=None, regularization="auto", polynomial=False,
         retarget="displacement", mesh_units=None, units=None, rate=None, up_axis=None, stabilize="auto",
         fill_gaps=None, filter=None, cutoff=8.0, trim=None, neutral=None, region_radius_cm=1.0,
-        sigma_cm=2.0, threshold=0.6, pin_border=True, components="error") -> dict:
+        sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error") -> dict:
     """Run the whole pipeline; returns the summary (also written to OUTDIR/summary.json)."""
     from .bind import bind
     from .distances import distances

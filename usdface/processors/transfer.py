@@ -46,6 +46,7 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
     """Transfer the capture's marker displacements to every vertex; write the animation layer."""
     from ..capture.retarget import marker_displacements
     from ..rbf.stability import amplification, fit_stable, marker_residual
+    from ..rbf.stiffness import DEFAULT_WIDTH_FACTOR, median_marker_spacing_from_points
     from ..rbf.transfer import RBFTransfer
     from ..usd.analysis_layer import read_distance_matrix, write_animation_layer
     from ..usd.capture_layer import read_capture_layer
@@ -66,6 +67,8 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
     centre_points = np.concatenate([binding.surface_points(mesh.points), mesh.points[dm.constraint_vertices]])
     t0 = time.perf_counter()
     widths = parse_stiffness(stiffness)
+    if widths is None:  # the default rule on Euclidean marker spacing, whatever the distance method
+        widths = DEFAULT_WIDTH_FACTOR * median_marker_spacing_from_points(binding.surface_points(mesh.points))
 
     def make_solver(lam):
         with warnings.catch_warnings():

@@ -1,0 +1,52 @@
+"""Evaluation of usdface's transfer against ground truth (pure numpy, no pxr).
+
+- :mod:`usdface.evaluation.quality`: transfer ground-truth expression shapes through their marker
+  displacements with each distance method / RBF mode / pinned-border variant and measure the
+  vertex errors per face region; the paper's claim (Euclidean artifacts around the mouth and eyes)
+  made measurable.
+"""
+from __future__ import annotations
+
+from .quality import (
+    AUTHORS_WIDTH_CM,
+    MIN_SHAPE_DISPLACEMENT_CM,
+    REGION_NAMES,
+    REGION_RADIUS_CM,
+    ConfigResult,
+    EvaluationRegions,
+    QualityReport,
+    TransferSetup,
+    TransferConfig,
+    claim_numbers,
+    default_configs,
+    evaluate,
+    evaluation_regions,
+    format_report,
+    marker_displacements,
+    parse_configs,
+    select_shapes,
+    shape_errors,
+    summary_rows,
+)
+
+__all__ = [
+    "AUTHORS_WIDTH_CM",
+    "MIN_SHAPE_DISPLACEMENT_CM",
+    "REGION_NAMES",
+    "REGION_RADIUS_CM",
+    "ConfigResult",
+    "EvaluationRegions",
+    "QualityReport",
+    "TransferSetup",
+    "TransferConfig",
+    "claim_numbers",
+    "default_configs",
+    "evaluate",
+    "evaluation_regions",
+    "format_report",
+    "marker_displacements",
+    "parse_configs",
+    "select_shapes",
+    "shape_errors",
+    "summary_rows",
+]
