@@ -151,8 +151,8 @@ class TransferConfig:
     kernel : str
         RBF kernel (``gaussian`` = paper Eq. 3).
     width_cm : float or None
-        Kernel width of every centre in cm; None = the default rule (1.5 x the median
-        nearest-marker distance, measured with this config's distance).
+        Kernel width of every centre in cm; None = the pipeline's rule (1.1 x the median
+        Euclidean nearest-marker distance between the bound points).
     polynomial : bool
         Linear polynomial term (interpolate mode).
     pin : {"border", "none", "upper"}
