@@ -103,6 +103,16 @@ def read_distance_matrix(path, *, method: str | None = None, stage: Usd.Stage | 
                           hybrid_weight=np.asarray(w.Get(), dtype=np.float32) if w and w.HasValue() else None)
 
 
+def frame_extents(points: np.ndarray) -> np.ndarray:
+    """(F, 2, 3) per-frame bounding boxes of (F, N, 3) points.
+
+    Reduces over a contiguous last axis: numpy's min over the middle axis of (F, N, 3) runs ~7x
+    slower (an inner loop of length 3), which made the extent cost more than the .usdc write.
+    """
+    xyz = np.ascontiguousarray(points.transpose(0, 2, 1))  # (F, 3, N)
+    return np.stack([xyz.min(axis=2), xyz.max(axis=2)], axis=1)
+
+
 def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, start: float, rate: float,
                           n_frames: int, units, transfer: dict, prov: dict, progress=None) -> str:
     """Stream time-sampled points into an animation layer (.usdc), saving after every chunk.
@@ -146,12 +156,12 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
         written = 0
         for frames, disp in chunks:
             pts = disp + rest[None]
-            extents = np.stack([pts.min(axis=1), pts.max(axis=1)], axis=1)
-            with Sdf.ChangeBlock():
-                for k, f in enumerate(range(frames.start, frames.stop)):
-                    t = Usd.TimeCode(start + f)
-                    points_attr.Set(Vt.Vec3fArray.FromNumpy(pts[k]), t)
-                    extent_attr.Set(Vt.Vec3fArray.FromNumpy(extents[k]), t)
+            extents = frame_extents(pts)
+            # (no Sdf.ChangeBlock here: with large arrays it made the sets ~2x slower)
+            for k, f in enumerate(range(frames.start, frames.stop)):
+                t = Usd.TimeCode(start + f)
+                points_attr.Set(Vt.Vec3fArray.FromNumpy(pts[k]), t)
+                extent_attr.Set(Vt.Vec3fArray.FromNumpy(extents[k]), t)
             written += frames.stop - frames.start
             layer.Save()  # appends in place: memory stays flat on long takes
             if progress is not None:

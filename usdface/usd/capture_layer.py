@@ -91,7 +91,7 @@ def write_capture_layer(path: str | os.PathLike, capture: Capture, *, prov: dict
         points.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(Vt.Vec3fArray([Gf.Vec3f(1.0, 0.55, 0.1)]))
         points_attr = points.CreatePointsAttr()
         extent_attr = points.CreateExtentAttr()
-        extents = np.stack([held.min(axis=1), held.max(axis=1)], axis=1)  # (F, 2, 3)
+        extents = np.stack([held.min(axis=1), held.max(axis=1)], axis=1)  # (F, 2, 3); M is small
         op = root.AddTransformOp()
         with Sdf.ChangeBlock():  # one change notification for all samples, not one per Set
             # bool arrays are held between samples: author validity only where it changes
