@@ -535,9 +535,14 @@ def multi_source_shortest_paths(graph, points, source_tri_vertices, source_baryc
     settled = np.zeros(s, dtype=np.int64)
     indices = g.indices.astype(np.int32, copy=False)
     indptr = g.indptr.astype(np.int64, copy=False)
-    _sssp_many(indptr, indices, g.data.astype(np.float64, copy=False), start_ptr, sv, sd, sink_ptr, sink_src,
-               sink_w, direct_ptr, direct_to, direct_d, need, n_needed,
-               float(limit), float(delta), int(slots), out_v, out_s, settled)
+    old_chunk = _nb.get_parallel_chunksize()
+    _nb.set_parallel_chunksize(1)   # hand sources out one at a time: balanced when CPUs are shared
+    try:
+        _sssp_many(indptr, indices, g.data.astype(np.float64, copy=False), start_ptr, sv, sd, sink_ptr, sink_src,
+                   sink_w, direct_ptr, direct_to, direct_d, need, n_needed,
+                   float(limit), float(delta), int(slots), out_v, out_s, settled)
+    finally:
+        _nb.set_parallel_chunksize(old_chunk)
     return out_v.T, out_s, settled
 
 
