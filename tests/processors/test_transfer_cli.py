@@ -194,3 +194,36 @@ def test_coincident_markers_are_named(runs, sample_assets, tmp_path, capsys, cli
     err = capsys.readouterr().err
     assert code == 2 and "Chin" in err and "Chin_L1" in err
     assert not any((tmp_path / "out").iterdir())  # nothing partial left
+
+
+def test_preview_of_an_animation(runs, tmp_path, cli):
+    import cv2
+
+    d = runs["hm08", "hybrid"]
+    sheet = tmp_path / "sheet.png"
+    assert cli("preview", d / "shot.usda", "--frames", "0", "441", "1000", "--color", "displacement",
+               "-o", sheet, "--size", "600", "-q") == 0
+    err = tmp_path / "err.png"
+    assert cli("preview", d / "shot.usda", "--frame", "441", "--color", "error", "--reference",
+               runs["hm08", "euclidean"] / "shot.usda", "-o", err, "--size", "256", "-q") == 0
+    w = tmp_path / "w.png"
+    assert cli("preview", d / "shot.usda", "--color", "hybrid-weight", "-o", w, "--size", "256", "-q") == 0
+    for png in (sheet, err, w):
+        img = cv2.imread(str(png))
+        assert img is not None and img.std() > 10
+    # an over-only layer cannot be previewed on its own: the message says what to open instead
+    assert cli("preview", d / "anim.usdc", "-o", tmp_path / "x.png") == 2
+
+
+def test_mesh_without_units_is_refused(runs, tmp_path, capsys, cli):
+    from pxr import Sdf
+
+    d = runs["hm08", "euclidean"]
+    layer = Sdf.Layer.FindOrOpen(str(d / "mesh.usdc"))
+    text = layer.ExportToString().replace("metersPerUnit = 0.01", "")
+    nounits = Sdf.Layer.CreateNew(str(tmp_path / "nounits.usda"))
+    nounits.ImportFromString(text)
+    nounits.Save()
+    assert cli("bind", "--mesh", tmp_path / "nounits.usda", "--capture", d / "capture.usdc", "--auto",
+               "-o", tmp_path / "b.usda") == 2
+    assert "units" in capsys.readouterr().err
