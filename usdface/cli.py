@@ -304,6 +304,7 @@ def _cmd_plugin_path(args) -> dict:
 #: subcommand's ``func(args) -> dict`` returns the summary (``_text`` lines, ``_exit`` code)
 PLUGIN_COMMANDS = (
     "usdface.processors.evaluate",
+    "usdface.processors.batch",
 )
 
 

@@ -75,16 +75,79 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
 
 
 def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabilize=None, fill_gaps=None,
-                   filter=None, cutoff=8.0, trim=None, start_frame=None, resample=None, neutral=None) -> dict:
-    """Import and condition a capture; write the capture layer. Returns a summary dict."""
-    from ..usd.capture_layer import write_capture_layer
+                   filter=None, cutoff=8.0, trim=None, start_frame=None, resample=None, neutral=None,
+                   cache=None) -> dict:
+    """Import and condition a capture; write the capture layer. Returns a summary dict.
 
+    ``cache`` (a :class:`usdface.batch.cache.ContentCache`, default None: no cache) reuses a capture
+    layer written before from the same file bytes, file name, options and usdface version: the
+    layer is copied, byte for byte what this call would write.
+    """
     out = check_output_path(output)
     if out.suffix.lower() not in (".usdc", ".usd", ".usda"):
         raise OptionError(f"-o {out}: a capture layer is a .usdc (or .usd/.usda) file")
     options = dict(units=units, rate=rate, up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
                    filter=filter, cutoff=cutoff if filter else None, trim=trim, start_frame=start_frame,
                    resample=resample, neutral=neutral)
+    if cache is None:
+        return _import_capture(input, out, options, fill_gaps)
+    from ..batch.cache import content_key
+    from ..usd.layers import file_digest
+
+    if not Path(input).is_file():
+        from ..errors import InputError
+
+        raise InputError(f"capture {input}: no such file")
+    key = content_key("capture", Path(input).name, file_digest(input), out.suffix.lower(), options)
+    name = "capture" + out.suffix.lower()
+    with cache.lock("capture", key):
+        entry = cache.get("capture", key)
+        if entry is None:
+            summary = _import_capture(input, out, options, fill_gaps)
+            stored = {k: v for k, v in summary.items() if k not in ("output", "source", "_text")}
+            stored["_text"] = [line.replace(str(out), "{output}") for line in summary["_text"]]
+            cache.put("capture", key, files={name: out}, meta={"summary": stored})
+            status = "miss"
+        else:
+            _copy_atomic(entry.file(name), out)
+            stored = entry.meta["summary"]
+            summary = {"output": str(out), "source": str(input)}
+            summary.update({k: v for k, v in stored.items() if k != "_text"})
+            summary["_text"] = [line.replace("{output}", str(out)) for line in stored["_text"]]
+            summary["_text"][0] += " (from the cache)"
+            status = "hit"
+    summary["cache"] = {"status": status, "key": key}
+    return summary
+
+
+def _copy_atomic(src: Path, dst: Path) -> None:
+    """Copy ``src`` over ``dst`` through a temporary file in ``dst``'s folder and one rename."""
+    import os
+    import secrets
+    import shutil
+
+    tmp = dst.with_name(f".{dst.stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{dst.suffix}")
+    try:
+        with open(src, "rb") as fi, open(tmp, "wb") as fo:
+            shutil.copyfileobj(fi, fo, 1 << 20)
+            fo.flush()
+            os.fsync(fo.fileno())
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+        os.replace(tmp, dst)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def _import_capture(input, out, options, fill_gaps) -> dict:
+    from ..usd.capture_layer import write_capture_layer
+
+    units, rate, up_axis = options["units"], options["rate"], options["up_axis"]
+    trim, filter, resample = options["trim"], options["filter"], options["resample"]
+    neutral, stabilize, start_frame = options["neutral"], options["stabilize"], options["start_frame"]
+    cutoff = options["cutoff"] if filter else 8.0
     capture = load_capture(input, units=units, rate=rate, up_axis=up_axis)
     capture, reports = condition_capture(capture, trim=trim, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff,
                                          resample=resample, neutral=neutral, stabilize=stabilize,

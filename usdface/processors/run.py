@@ -23,8 +23,14 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         rbf="interpolate", kernel="gaussian", stiffness=None, regularization="auto", polynomial=False,
         retarget="displacement", mesh_units=None, units=None, rate=None, up_axis=None, stabilize="auto",
         fill_gaps=None, filter=None, cutoff=8.0, trim=None, neutral=None, region_radius_cm=1.0,
-        sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error") -> dict:
-    """Run the whole pipeline; returns the summary (also written to OUTDIR/summary.json)."""
+        sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error", cache=None) -> dict:
+    """Run the whole pipeline; returns the summary (also written to OUTDIR/summary.json).
+
+    ``cache`` (a :class:`usdface.batch.cache.ContentCache`; default None, no cache) reuses imported
+    captures and distance matrices computed before; the layers written are the same either way.
+    The summary's ``provenance`` (see :func:`run_provenance`) records the usdface version, the
+    options and the input files' names and sha256, so a batch can tell whether OUTDIR is current.
+    """
     from .bind import bind
     from .distances import distances
     from .import_capture import import_capture
@@ -40,6 +46,13 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
     out = Path(out_dir)
     if not out.parent.is_dir():
         raise OptionError(f"-o {out}: folder {out.parent} does not exist")
+    options = run_options(layout=layout, auto=auto, method=method, backend=backend, rbf=rbf, kernel=kernel,
+                          stiffness=stiffness, regularization=regularization, polynomial=polynomial,
+                          retarget=retarget, mesh_units=mesh_units, units=units, rate=rate, up_axis=up_axis,
+                          stabilize=stabilize, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff, trim=trim,
+                          neutral=neutral, region_radius_cm=region_radius_cm, sigma_cm=sigma_cm,
+                          threshold=threshold, pin_border=pin_border, components=components)
+    prov = run_provenance(mesh, capture, options, layout=layout, stiffness=stiffness)
     out.mkdir(exist_ok=True)
     started = time.perf_counter()
     steps: dict = {}
@@ -50,12 +63,14 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         steps["import-mesh"] = import_mesh(mesh, f["mesh.usdc"], units=mesh_units)
         steps["import-capture"] = import_capture(capture, f["capture.usdc"], units=units, rate=rate,
                                                  up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
-                                                 filter=filter, cutoff=cutoff, trim=trim, neutral=neutral)
+                                                 filter=filter, cutoff=cutoff, trim=trim, neutral=neutral,
+                                                 cache=cache)
         steps["bind"] = bind(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], layout=layout, auto=auto,
                              retarget=retarget)
         steps["distances"] = distances(f["mesh.usdc"], f["binding.usda"], f["analysis.usdc"], method=method,
                                        backend=backend, region_radius_cm=region_radius_cm, sigma_cm=sigma_cm,
-                                       threshold=threshold, pin_border=pin_border, components=components)
+                                       threshold=threshold, pin_border=pin_border, components=components,
+                                       cache=cache)
         steps["transfer"] = transfer(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], f["analysis.usdc"],
                                      f["anim.usdc"], rbf=rbf, kernel=kernel, stiffness=stiffness,
                                      regularization=regularization, polynomial=polynomial, method=method)
@@ -71,6 +86,7 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
             "vertices": steps["import-mesh"]["points"],
             "steps": {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in steps.items()},
             "seconds": round(time.perf_counter() - started, 3),
+            "provenance": prov,
         }
         # paths in the summary name the final files, not the private work folder
         text = json.dumps(summary, indent=2, default=str).replace(str(work), str(out))
@@ -95,3 +111,33 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         f"  total {summary['seconds']:.1f} s; files: {', '.join(OUTPUT_FILES)}",
     ]
     return summary
+
+
+def run_options(**options) -> dict:
+    """The options of a run as recorded in its provenance (JSON types; paths by file name)."""
+    rec = {}
+    for k, v in sorted(options.items()):
+        if k == "layout" and v is not None:
+            v = Path(v).name
+        elif k == "stiffness" and v is not None and not isinstance(v, (int, float, dict)) and Path(str(v)).is_file():
+            v = Path(v).name
+        elif isinstance(v, tuple):
+            v = list(v)
+        rec[k] = v
+    return json.loads(json.dumps(rec, sort_keys=True, default=str))
+
+
+def run_provenance(mesh, capture, options: dict, *, layout=None, stiffness=None) -> dict:
+    """What `run` was asked to do: usdface version, options (:func:`run_options`), and the input
+    files' names + sha256 (no paths, no timestamps), as in every layer's provenance; equal dicts
+    mean the same job on the same bytes."""
+    from ..usd.layers import provenance
+
+    stiffness_file = None
+    if stiffness is not None and not isinstance(stiffness, (int, float, dict)):
+        try:
+            float(stiffness)
+        except ValueError:
+            stiffness_file = stiffness if Path(stiffness).is_file() else None
+    return provenance("run", options=options, inputs={"mesh": mesh, "capture": capture, "layout": layout,
+                                                      "stiffness": stiffness_file})

@@ -1,0 +1,113 @@
+"""Batch benchmark (by hand, not CI): 12 shots = 4 meshes (one >= 100k vertices) x 3 takes,
+serial (--workers 0) vs a 2-worker LocalCluster, each with a cold and a warm cache, all measured in
+this run.
+
+    python benchmarks/bench_batch.py [--frames 300] [--big-subdiv 3] [--out /tmp/usdface-bench]
+
+Disk: a 100k-vertex face writes ~1.2 MB per frame of anim.usdc; the script estimates what the
+four runs need (every run keeps its outputs until the end) and refuses to start without it.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+
+def subdivided_face(src: Path, dst: Path, levels: int) -> int:
+    """Midpoint-subdivide the sample face's triangles/quads `levels` times (OBJ out); returns vertices."""
+    verts, faces = [], []
+    for line in src.read_text().splitlines():
+        if line.startswith("v "):
+            verts.append([float(x) for x in line.split()[1:4]])
+        elif line.startswith("f "):
+            faces.append([int(t.split("/")[0]) - 1 for t in line.split()[1:]])
+    v = np.array(verts)
+    tris = [t for f in faces for t in ([f[0], f[i], f[i + 1]] for i in range(1, len(f) - 1))]
+    tris = np.array(tris)
+    for _ in range(levels):
+        edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+        mid = len(v) + np.arange(len(uniq))
+        v = np.concatenate([v, 0.5 * (v[uniq[:, 0]] + v[uniq[:, 1]])])
+        n = len(tris)
+        a, b, c = mid[inv[:n]], mid[inv[n:2 * n]], mid[inv[2 * n:]]
+        t0, t1, t2 = tris.T
+        tris = np.concatenate([np.stack([t0, a, c], 1), np.stack([a, t1, b], 1), np.stack([c, b, t2], 1),
+                               np.stack([a, b, c], 1)])
+    with open(dst, "w") as f:
+        f.write("".join(f"v {x:.6f} {y:.6f} {z:.6f}\n" for x, y, z in v))
+        f.write("".join(f"f {i + 1} {j + 1} {k + 1}\n" for i, j, k in tris))
+    return len(v)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frames", type=int, default=300, help="frames per take (trim)")
+    ap.add_argument("--big-subdiv", type=int, default=3, help="subdivision levels of the big face (3: ~125k vertices)")
+    ap.add_argument("--out", default="/tmp/usdface-bench-batch")
+    args = ap.parse_args()
+    from usdface.batch import load_manifest, run_batch
+
+    out = Path(args.out)
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    sa = REPO / "sample_assets"
+    big = out / "hm08_subdiv.obj"
+    n_big = subdivided_face(sa / "meshes" / "makehuman_hm08_face_cm.obj", big, args.big_subdiv)
+    meshes = [(sa / "meshes" / "makehuman_hm08_face_cm.obj", "makehuman_hm08_face"),
+              (sa / "meshes" / "makehuman_hm08_face_stylized_cm.obj", "makehuman_hm08_face_stylized"),
+              (sa / "meshes" / "mediapipe_canonical_face_model_holes.obj", "mediapipe_face_holes"),
+              (big, "makehuman_hm08_face")]
+    per_frame = (n_big + 3 * 20000) * 12 * 1.03  # points + extent, bytes, the three small faces generously
+    need = 4 * 3 * args.frames * per_frame + 200e6
+    free = shutil.disk_usage(out).free
+    print(f"big face: {n_big} vertices; disk needed ~{need / 1e9:.2f} GB for 4 runs x 12 shots x {args.frames} "
+          f"frames ({per_frame / 1e6:.2f} MB per frame of the four faces), free {free / 1e9:.1f} GB")
+    if free < need:
+        raise SystemExit("not enough free disk space; use --frames or --out on a bigger disk")
+    text = ["[defaults]", f"trim = [0, {args.frames}]", 'output = "out/{mesh}/{capture}"']
+    for mesh, layout in meshes:
+        text += ["[[shots]]", f'mesh = "{mesh}"', f'layout = "{sa}/layouts/{layout}.layout.json"',
+                 f'capture = "{sa}/capture/*MoCap.ma"']
+    manifest = out / "bench.toml"
+    manifest.write_text("\n".join(text) + "\n")
+    results = {}
+    for label, workers in (("serial", 0), ("workers2", 2)):
+        for cache_state in ("cold", "warm"):
+            root = out / label
+            if cache_state == "cold":
+                shutil.rmtree(root, ignore_errors=True)
+            else:  # same cache, outputs redone
+                shutil.rmtree(root / "out", ignore_errors=True)
+            m = load_manifest(manifest, out_root=root)
+            t = time.perf_counter()
+            s = run_batch(m, workers=workers, force=True, quiet=True)
+            results[(label, cache_state)] = sec = time.perf_counter() - t
+            dist = sum(r["steps"].get("distances", 0) or 0 for r in s["shots"])
+            print(f"{label:9s} {cache_state} cache: {sec:6.1f} s wall, {s['counts']['ok']}/12 ok, distances "
+                  f"{s['cache']['steps'].get('distances')}, time in distances {dist:.1f} s")
+            assert s["counts"]["ok"] == 12, json.dumps(s["shots"], indent=1, default=str)[:3000]
+    # byte-identity serial vs parallel on every layer
+    same = 0
+    for f in (out / "serial" / "out").rglob("*.usd?"):
+        same += f.read_bytes() == (out / "workers2" / "out" / f.relative_to(out / "serial" / "out")).read_bytes()
+    total = len(list((out / "serial" / "out").rglob("*.usd?")))
+    print(f"speedup --workers 2 vs serial: cold {results[('serial', 'cold')] / results[('workers2', 'cold')]:.2f}x, "
+          f"warm {results[('serial', 'warm')] / results[('workers2', 'warm')]:.2f}x")
+    print(f"cache effect (cold / warm): serial {results[('serial', 'cold')] / results[('serial', 'warm')]:.2f}x, "
+          f"--workers 2 {results[('workers2', 'cold')] / results[('workers2', 'warm')]:.2f}x")
+    print(f"layers byte-identical serial vs --workers 2: {same}/{total}")
+    print(f"disk used: {sum(f.stat().st_size for f in out.rglob('*') if f.is_file()) / 1e9:.2f} GB in {out}")
+
+
+if __name__ == "__main__":
+    main()

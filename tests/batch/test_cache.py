@@ -1,0 +1,100 @@
+"""The content-addressed cache: atomic entries, racing writers, a full disk, corrupt entries."""
+from __future__ import annotations
+
+import errno
+import shutil
+import threading
+
+import numpy as np
+import pytest
+
+from usdface.batch.cache import ContentCache, content_key
+from usdface.errors import ResourceError
+
+
+def test_key_depends_on_content_not_identity():
+    a = np.arange(6.0).reshape(2, 3)
+    assert content_key("d", a.copy(), "x") == content_key("d", a, "x")
+    assert content_key("d", a, "x") != content_key("d", a + 1e-12, "x")
+    assert content_key("d", a, "x") != content_key("d", a.astype(np.float32), "x")
+    assert content_key("d", {"b": 1, "a": 2}) == content_key("d", {"a": 2, "b": 1})
+
+
+def test_put_get_roundtrip_and_counts(tmp_path):
+    c = ContentCache(tmp_path / "c")
+    key = content_key("t", 1)
+    assert c.get("t", key) is None
+    e = c.put("t", key, arrays={"x": np.arange(5)}, meta={"hello": "world"})
+    assert e.meta["hello"] == "world" and np.array_equal(c.get("t", key).arrays()["x"], np.arange(5))
+    assert (c.stats.hits, c.stats.misses, c.stats.stores) == (1, 1, 1)
+    assert not list((tmp_path / "c" / "t").glob(".tmp-*"))
+
+
+def test_concurrent_writers_leave_one_whole_entry(tmp_path):
+    c = ContentCache(tmp_path / "c", lock="none")  # no lock: writers really race
+    key = content_key("t", "race")
+    data = np.random.default_rng(0).random((200, 200))
+    errors = []
+
+    def write():
+        try:
+            c.put("t", key, arrays={"x": data}, meta={})
+        except Exception as exc:  # noqa: BLE001
+            errors.append(exc)
+
+    threads = [threading.Thread(target=write) for _ in range(8)]
+    [t.start() for t in threads]
+    [t.join() for t in threads]
+    assert not errors
+    assert len(c.entries("t")) == 1 and np.array_equal(c.get("t", key).arrays()["x"], data)
+    assert not list((tmp_path / "c" / "t").glob(".tmp-*"))
+
+
+def test_disk_filling_up_while_writing_leaves_no_entry(tmp_path, monkeypatch):
+    c = ContentCache(tmp_path / "c")
+    key = content_key("t", "full")
+
+    def full(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(np, "savez", full)
+    with pytest.raises(ResourceError, match=r"filled up while writing.*no entry was written.*--no-cache"):
+        c.put("t", key, arrays={"x": np.zeros(10)}, meta={})
+    assert c.get("t", key) is None and not list((tmp_path / "c" / "t").iterdir())[1:] and \
+        not list((tmp_path / "c" / "t").glob(".tmp-*"))
+
+
+def test_too_little_free_space_is_refused_up_front(tmp_path, monkeypatch):
+    c = ContentCache(tmp_path / "c")
+    real = shutil.disk_usage
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: real(p)._replace(free=1000))
+    with pytest.raises(ResourceError, match=r"too little free space.*1\.0 kB|too little free space"):
+        c.put("t", content_key("t", 2), arrays={"x": np.zeros(1000)}, meta={})
+    assert c.entries("t") == []
+
+
+def test_corrupt_entry_is_a_miss_and_removed(tmp_path):
+    c = ContentCache(tmp_path / "c")
+    key = content_key("t", 3)
+    e = c.put("t", key, arrays={"x": np.arange(100)}, meta={})
+    with open(e.file("arrays.npz"), "r+b") as f:
+        f.seek(-8, 2)
+        f.write(b"garbage!")
+    assert c.get("t", key) is None
+    assert c.entries("t") == []
+
+
+def test_full_cache_fails_the_shot_clearly(tmp_path, make_manifest, monkeypatch):
+    """A shot whose cache write hits a full disk fails with the cache's message; the others go on."""
+    from usdface.batch import load_manifest, run_batch
+    from usdface.batch import cache as cache_mod
+
+    real = shutil.disk_usage
+    monkeypatch.setattr(cache_mod.shutil, "disk_usage", lambda p: real(p)._replace(free=10_000))
+    m = load_manifest(make_manifest(tmp_path, broken=False, trim=(0, 30)))
+    m.shots = m.shots[:2]
+    s = run_batch(m, workers=0, quiet=True)
+    assert [r["status"] for r in s["shots"]] == ["failed", "failed"]
+    assert "too little free space" in s["shots"][0]["error"]
+    assert ContentCache(m.cache).entries() == []
+    assert s["_exit"] == 1

@@ -1,0 +1,103 @@
+"""Manifest parsing: keys, globs, placeholders, and bad input reported before any work."""
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from usdface.batch.manifest import key_line, load_manifest
+from usdface.errors import FormatError, InputError
+
+
+def test_globs_expand_to_mesh_x_capture_and_name_outputs(tmp_path, make_manifest):
+    m = load_manifest(make_manifest(tmp_path))
+    assert len(m.shots) == 7
+    names = [s.name for s in m.shots]
+    assert "makehuman_hm08_face_cm/JawMoCap" in names and "mediapipe_canonical_face_model_holes/NoseMoCap" in names
+    s = next(s for s in m.shots if s.name == "makehuman_hm08_face_cm/JawMoCap")
+    assert s.output == str(tmp_path / "out" / "makehuman_hm08_face_cm" / "JawMoCap")
+    # CLI defaults and conversions, as `usdface run` would get them
+    assert s.options["trim"] == [0, 120] and s.options["method"] == "hybrid" and s.options["stabilize"] == "auto"
+    assert s.options["region_radius_cm"] == 1.0 and s.options["layout"].endswith("makehuman_hm08_face.layout.json")
+    assert m.cache == str(tmp_path / ".usdface-cache")
+
+
+def test_cli_option_names_in_snake_case(tmp_path, make_manifest):
+    p = make_manifest(tmp_path, broken=False, extra='pin_border = "all"\nstabilize = false\nregion_radius = 1.5\n'
+                                                   'polynomial = true\nneutral = "auto"')
+    s = load_manifest(p).shots[0]
+    assert s.options["pin_border"] == "all" and s.options["stabilize"] is None
+    assert s.options["region_radius_cm"] == 1.5 and s.options["polynomial"] is True and s.options["neutral"] == "auto"
+
+
+def test_unknown_key_named_with_its_line(tmp_path, make_manifest):
+    p = make_manifest(tmp_path, broken=False)
+    text = p.read_text().replace('capture = "', 'pinborder = "upper"\ncapture = "', 1)
+    p.write_text(text)
+    line = text.splitlines().index('pinborder = "upper"') + 1
+    with pytest.raises(FormatError) as e:
+        load_manifest(p)
+    msg = str(e.value)
+    assert f"line {line}" in msg and "'pinborder'" in msg and "did you mean 'pin_border'" in msg
+
+
+def test_key_line_finds_the_right_table():
+    text = '[defaults]\nmethod = "x"\n[[shots]]\nmesh = "a"\n[[shots]]\nmesh = "b"\n  foo = 1\n'
+    assert key_line(text, "shots", 1, "foo") == 7
+    assert key_line(text, "defaults", None, "method") == 2
+    assert key_line(text, "shots", 0, "foo") is None
+
+
+def test_bad_value_uses_the_cli_parser_and_names_the_line(tmp_path, make_manifest):
+    p = make_manifest(tmp_path, broken=False, extra='method = "manhattan"')
+    line = p.read_text().splitlines().index('method = "manhattan"') + 1
+    with pytest.raises(InputError, match=rf"line {line}.*--method.*invalid choice"):
+        load_manifest(p)
+
+
+def test_missing_files_listed_all_at_once(tmp_path, make_manifest):
+    p = make_manifest(tmp_path, broken=False)
+    text = p.read_text().replace("makehuman_hm08_face_cm.obj", "nope_face.obj").replace(
+        "mediapipe_face_holes.layout.json", "nope.layout.json").replace("*MoCap.ma", "*NoSuchTake.ma", 1)
+    p.write_text(text)
+    with pytest.raises(InputError) as e:
+        load_manifest(p)
+    msg = str(e.value)
+    assert "3 input file(s) not found" in msg
+    assert "nope_face.obj" in msg and "nope.layout.json" in msg and "*NoSuchTake.ma matches no file" in msg
+
+
+def test_read_only_output_folder_reported_before_work(tmp_path, make_manifest):
+    if os.geteuid() == 0:  # root writes through permissions: use a file system that takes no files
+        target = "/proc/usdface-batch-test/{mesh}/{capture}"
+    else:
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        target = str(ro / "{mesh}" / "{capture}")
+    p = make_manifest(tmp_path, broken=False)
+    p.write_text(p.read_text().replace('output = "out/{mesh}/{capture}"', f'output = "{target}"'))
+    with pytest.raises(InputError, match="read-only"):
+        load_manifest(p)
+
+
+def test_outputs_must_differ(tmp_path, make_manifest):
+    p = make_manifest(tmp_path, broken=False)
+    p.write_text(p.read_text().replace('output = "out/{mesh}/{capture}"', 'output = "out/{mesh}"'))
+    with pytest.raises(InputError, match="share an output folder"):
+        load_manifest(p)
+
+
+def test_video_capture_accepted_and_reported_unsupported(tmp_path, make_manifest, sample_assets):
+    from usdface.batch.runner import run_batch
+
+    video = tmp_path / "take01.mp4"
+    video.write_bytes(b"\0" * 16)
+    p = tmp_path / "video.toml"
+    p.write_text(f'[[shots]]\nmesh = "{sample_assets}/meshes/makehuman_hm08_face_cm.obj"\nauto = true\n'
+                 f'capture = "{video}"\noutput = "out/{{capture}}"\nprocessors = ["track", "run"]\n')
+    m = load_manifest(p)
+    assert m.shots[0].is_video
+    s = run_batch(m, workers=0, quiet=True)
+    assert s["shots"][0]["status"] == "unsupported" and "is a video" in s["shots"][0]["error"]
+    assert s["_exit"] == 1

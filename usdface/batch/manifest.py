@@ -1,0 +1,405 @@
+"""Shot manifests (TOML): defaults plus a list of shots, expanded and checked before any work.
+
+::
+
+    [batch]                      # optional: how the batch runs (command-line options override)
+    cache = "cache"              # cache folder, or false for none (default: .usdface-cache)
+    summary = "batch-summary.json"
+    workers = 2                  # default LocalCluster size
+    scheduler = "tcp://farm:8786"
+
+    [defaults]                   # any shot key; every shot starts from these
+    method = "hybrid"
+    trim = [0, 200]
+    output = "out/{mesh}/{capture}"
+
+    [[shots]]                    # one entry per character (globs make many shots)
+    mesh = "../meshes/makehuman_hm08_face_cm.obj"
+    capture = "../capture/*MoCap.ma"
+    layout = "../layouts/makehuman_hm08_face.layout.json"
+
+Shot keys are the long options of ``usdface run`` in snake_case (``--pin-border`` is
+``pin_border``; flags are booleans; ``stabilize = false`` is ``--no-stabilize``) plus
+``processors`` (default ``["run"]``; ``"check"`` also validates the shot; ``"track"`` tracks a
+video capture first). ``mesh``, ``capture`` and ``layout`` may be glob patterns; a shot entry
+expands to every mesh x capture pair, and ``output``/``layout`` may name the pair with
+``{mesh}`` and ``{capture}`` (file names without suffix). Relative paths are relative to the
+manifest's folder (outputs and the cache to ``--out-root`` when given). Values are checked by
+the same parser as the command line, so a manifest shot means what the command would.
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import FormatError, InputError, OptionError
+
+#: capture suffixes that need `usdface track` first
+VIDEO_SUFFIXES = (".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
+#: processors a shot may list
+PROCESSORS = ("track", "run", "check")
+BATCH_KEYS = {"cache": (str, bool), "summary": (str,), "workers": (int,), "scheduler": (str,)}
+#: `usdface run` options a manifest does not take (the run pipeline does not use them, or they
+#: are the batch's business)
+_EXCLUDED = {"help", "json", "verbose", "quiet", "start_frame", "resample", "no_stabilize", "output"}
+_SHOT_ONLY = {"mesh", "capture", "output", "processors"}
+
+
+@dataclass
+class Shot:
+    """One shot of a batch: everything needed to run it, in plain types (it travels to workers)."""
+
+    name: str
+    mesh: str
+    capture: str
+    output: str
+    options: dict                      # run() keyword arguments (CLI-parsed)
+    processors: tuple = ("run",)
+    layout: str | None = None
+    entry: int = 0                     # index of its [[shots]] entry
+    line: int | None = None
+
+    @property
+    def is_video(self) -> bool:
+        return Path(self.capture).suffix.lower() in VIDEO_SUFFIXES
+
+
+@dataclass
+class Manifest:
+    path: Path
+    shots: list
+    cache: str | None
+    summary: str
+    workers: int | None = None
+    scheduler: str | None = None
+    problems: list = field(default_factory=list)
+
+
+def _run_parser() -> argparse.ArgumentParser:
+    from ..cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    run = sub.choices["run"]
+
+    def error(message):
+        raise OptionError(message)
+
+    run.error = error
+    for action in run._actions:  # nested groups share the parser's error()
+        pass
+    return run
+
+
+def shot_keys() -> dict:
+    """{manifest key: argparse action} for every `usdface run` option a manifest takes."""
+    keys = {}
+    for action in _run_parser()._actions:
+        longs = [o for o in action.option_strings if o.startswith("--")]
+        if not longs:
+            continue
+        key = longs[0][2:].replace("-", "_")
+        if key not in _EXCLUDED:
+            keys[key] = action
+    return keys
+
+
+def key_line(text: str, table: str, index: int | None, key: str) -> int | None:
+    """1-based line of ``key`` in ``[table]`` (or the ``index``-th ``[[table]]``); tomllib gives none."""
+    current, count = None, -1
+    pattern = re.compile(r'^\s*(?:"([^"]+)"|\'([^\']+)\'|([A-Za-z0-9_\-.]+))\s*=')
+    for n, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        m = re.match(r"^\[\[\s*([^\]]+?)\s*\]\]", s)
+        if m:
+            current = m.group(1)
+            if current == table:
+                count += 1
+            continue
+        m = re.match(r"^\[\s*([^\]]+?)\s*\]", s)
+        if m:
+            current = m.group(1)
+            continue
+        if table is None and current is not None:
+            continue
+        if table is not None and current != table:
+            continue
+        if index is not None and count != index:
+            continue
+        m = pattern.match(line)
+        if m and (m.group(1) or m.group(2) or m.group(3)).split(".")[0] == key:
+            return n
+    return None
+
+
+def _header_line(text: str, table: str, index: int) -> int | None:
+    count = -1
+    for n, line in enumerate(text.splitlines(), 1):
+        if re.match(rf"^\s*\[\[\s*{re.escape(table)}\s*\]\]", line):
+            count += 1
+            if count == index:
+                return n
+    return None
+
+
+def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
+    """Read, validate and expand a manifest; every problem found is reported in one error.
+
+    Raises
+    ------
+    FormatError
+        Not TOML, unknown keys or tables (with their line), bad values.
+    InputError
+        Missing input files (all of them listed), unwritable output folders, clashing outputs.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"manifest {path}: no such file")
+    text = path.read_text()
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise FormatError(f"manifest {path}: not valid TOML ({exc})") from None
+    base = path.resolve().parent
+    out_base = Path(out_root).resolve() if out_root is not None else base
+    where = lambda table, index, key: _where(path, text, table, index, key)  # noqa: E731
+    allowed = shot_keys()
+    problems = []
+
+    for key in data:
+        if key not in ("batch", "defaults", "shots"):
+            problems.append(f"{where(None, None, key)}: unknown key or table {key!r}; a manifest has [batch], "
+                            "[defaults] and [[shots]]")
+    batch = data.get("batch", {})
+    defaults = data.get("defaults", {})
+    entries = data.get("shots", [])
+    if not isinstance(batch, dict) or not isinstance(defaults, dict):
+        raise FormatError(f"manifest {path}: [batch] and [defaults] must be tables")
+    if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
+        raise FormatError(f"manifest {path}: expected at least one [[shots]] table")
+    for key, value in batch.items():
+        if key not in BATCH_KEYS:
+            problems.append(f"{where('batch', None, key)}: unknown key {key!r} in [batch]; expected "
+                            f"{', '.join(BATCH_KEYS)}")
+        elif not isinstance(value, BATCH_KEYS[key]) or (key == "cache" and value is True):
+            problems.append(f"{where('batch', None, key)}: {key} = {value!r} has the wrong type")
+    valid_keys = set(allowed) | _SHOT_ONLY
+    hint = "; expected the long options of `usdface run` in snake_case: " + ", ".join(sorted(valid_keys))
+    for key in defaults:
+        if key not in valid_keys:
+            problems.append(f"{where('defaults', None, key)}: unknown key {key!r}{_suggest(key, valid_keys)}{hint}")
+    for i, entry in enumerate(entries):
+        for key in entry:
+            if key not in valid_keys:
+                problems.append(f"{where('shots', i, key)}: unknown key {key!r} in shot entry {i + 1}"
+                                f"{_suggest(key, valid_keys)}{hint}")
+    if problems:
+        raise FormatError("\n".join(problems))
+
+    shots, missing = [], []
+    for i, entry in enumerate(entries):
+        merged = {**defaults, **entry}
+        line = _header_line(text, "shots", i)
+        label = f"manifest {path} line {line}" if line else f"manifest {path} shot entry {i + 1}"
+        for req in ("mesh", "capture", "output"):
+            if req not in merged:
+                problems.append(f"{label}: shot entry {i + 1} has no {req!r}")
+        if "layout" not in merged and not merged.get("auto"):
+            problems.append(f"{label}: shot entry {i + 1} needs a layout or auto = true")
+        if problems:
+            continue
+        processors = merged.get("processors", ["run"])
+        if isinstance(processors, str):
+            processors = [processors]
+        bad = [p for p in processors if p not in PROCESSORS]
+        if bad or "run" not in processors:
+            problems.append(f"{where('shots', i, 'processors') if 'processors' in entry else label}: processors "
+                            f"{processors!r}: expected a list of {', '.join(PROCESSORS)} including 'run'")
+            continue
+        meshes = _expand(merged["mesh"], base, "mesh", label, missing)
+        captures = _expand(merged["capture"], base, "capture", label, missing)
+        for mesh in meshes:
+            for capture in captures:
+                names = {"mesh": Path(mesh).stem, "capture": Path(capture).stem}
+                try:
+                    output = str(_resolve(str(merged["output"]).format(**names), out_base))
+                    layout = None
+                    if merged.get("layout") is not None:
+                        found = _expand(str(merged["layout"]).format(**names), base, "layout", label, missing)
+                        layout = found[0] if found else None
+                except (KeyError, IndexError, ValueError) as exc:
+                    problems.append(f"{label}: bad placeholder {exc} (use {{mesh}} and {{capture}})")
+                    continue
+                options = _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems)
+                if options is None:
+                    continue
+                if options.get("stiffness") and not _is_number(options["stiffness"]):
+                    st = _resolve(options["stiffness"], base)
+                    if not st.is_file():
+                        missing.append(f"{label}: stiffness {st}")
+                    options["stiffness"] = str(st)
+                name = f"{names['mesh']}/{names['capture']}"
+                shots.append(Shot(name=name, mesh=mesh, capture=capture, output=output, options=options,
+                                  processors=tuple(p for p in PROCESSORS if p in processors), layout=layout,
+                                  entry=i, line=line))
+    missing = list(dict.fromkeys(missing))
+    if missing and check_files:
+        problems.insert(0, f"{len(missing)} input file(s) not found:\n  " + "\n  ".join(missing))
+    if problems:
+        raise InputError(f"manifest {path}:\n" + "\n".join(problems) if len(problems) > 1 or missing
+                         else problems[0])
+    seen = {}
+    clashes = []
+    for s in shots:
+        if s.output in seen:
+            clashes.append(f"{s.name} and {seen[s.output]} both write {s.output}")
+        seen[s.output] = s.name
+    if clashes:
+        raise InputError(f"manifest {path}: shots share an output folder (name outputs with {{mesh}} and "
+                         "{capture}):\n  " + "\n  ".join(clashes))
+    unwritable = _unwritable([s.output for s in shots])
+    cache = batch.get("cache", ".usdface-cache")
+    cache_path = None if cache is False else str(_resolve(cache, out_base))
+    if cache_path:
+        unwritable += _unwritable([cache_path], what="cache folder")
+    if unwritable:
+        raise InputError(f"manifest {path}: cannot write:\n  " + "\n  ".join(unwritable))
+    return Manifest(path=path, shots=shots, cache=cache_path,
+                    summary=str(_resolve(batch.get("summary", "usdface-batch-summary.json"), out_base)),
+                    workers=batch.get("workers"), scheduler=batch.get("scheduler"))
+
+
+def _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems) -> dict | None:
+    """Turn manifest values into `usdface run` arguments and parse them with the CLI's parser."""
+    argv = ["--mesh", mesh, "--capture", capture, "-o", output]
+    if layout is not None:
+        argv += ["--layout", layout]
+    for key, value in merged.items():
+        if key in _SHOT_ONLY or key == "layout":
+            continue
+        action = allowed[key]
+        opt = next(o for o in action.option_strings if o.startswith("--"))
+        table, idx = ("shots", i) if key in entry else ("defaults", None)
+        if key == "stabilize":
+            if value is False:
+                argv.append("--no-stabilize")
+            elif value is True or value == "auto":
+                argv += ["--stabilize", "auto"]
+            elif isinstance(value, list):
+                argv += ["--stabilize", ",".join(map(str, value))]
+            else:
+                argv += ["--stabilize", str(value)]
+            continue
+        if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
+            if not isinstance(value, bool):
+                problems.append(f"{where(table, idx, key)}: {key} = {value!r}: expected true or false")
+                return None
+            if value:
+                argv.append(opt)
+            continue
+        if isinstance(value, list):
+            argv += [opt] + [str(v) for v in value]
+        elif isinstance(value, bool) or isinstance(value, dict):
+            problems.append(f"{where(table, idx, key)}: {key} = {value!r}: expected a value for {opt}")
+            return None
+        else:
+            argv += [opt, str(value)]
+    try:
+        args = _run_parser().parse_args(argv)
+    except OptionError as exc:
+        culprit = _culprit(str(exc), merged)
+        loc = where(*(("shots", i) if culprit in entry else ("defaults", None)), culprit) if culprit else \
+            f"shot entry {i + 1}"
+        problems.append(f"{loc}: {exc}")
+        return None
+    from ..cli import _neutral_arg, _stabilize_arg
+
+    try:
+        neutral = _neutral_arg(args.neutral)
+    except Exception as exc:  # noqa: BLE001 - UsdFaceError with the option named
+        problems.append(f"{where('shots', i, 'neutral')}: {exc}")
+        return None
+    return dict(layout=args.layout, auto=args.auto, method=args.method, backend=args.backend, rbf=args.rbf,
+                kernel=args.kernel, stiffness=args.stiffness, regularization=args.regularization,
+                polynomial=args.polynomial, retarget=args.retarget, mesh_units=args.mesh_units, units=args.units,
+                rate=args.rate, up_axis=args.up_axis, stabilize=_stabilize_arg(args.stabilize),
+                fill_gaps=args.fill_gaps, filter=args.filter, cutoff=args.cutoff,
+                trim=list(args.trim) if args.trim else None, neutral=neutral, region_radius_cm=args.region_radius,
+                sigma_cm=args.sigma, threshold=args.threshold, pin_border=args.pin_border,
+                components=args.components)
+
+
+def _culprit(message: str, merged: dict) -> str | None:
+    m = re.search(r"--([a-z][a-z0-9-]*)", message)
+    if m:
+        key = m.group(1).replace("-", "_")
+        return key if key in merged else None
+    return None
+
+
+def _where(path, text, table, index, key) -> str:
+    n = key_line(text, table, index, key)
+    return f"manifest {path} line {n}" if n else f"manifest {path}"
+
+
+def _suggest(key, valid) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(key, sorted(valid), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def _resolve(p, base: Path) -> Path:
+    p = Path(os.path.expanduser(str(p)))
+    return p if p.is_absolute() else base / p
+
+
+def _expand(pattern, base: Path, what: str, label: str, missing: list) -> list[str]:
+    full = _resolve(pattern, base)
+    if glob.has_magic(str(pattern)):
+        found = sorted(glob.glob(str(full)))
+        if not found:
+            missing.append(f"{label}: {what} pattern {full} matches no file")
+        return found
+    if not full.is_file():
+        missing.append(f"{label}: {what} {full}")
+    return [str(full)]
+
+
+def _unwritable(paths, what="output folder") -> list[str]:
+    """Folders that cannot be created or written (the nearest existing ancestor is probed)."""
+    bad = []
+    for p in dict.fromkeys(paths):
+        q = Path(p)
+        while not q.exists():
+            q = q.parent
+        if not q.is_dir():
+            bad.append(f"{what} {p}: {q} is not a folder")
+        elif not _writable(q):
+            bad.append(f"{what} {p}: {q} is read-only")
+    return bad
+
+
+def _writable(folder: Path) -> bool:
+    if not os.access(folder, os.W_OK):
+        return False
+    try:  # root passes os.access everywhere; a read-only file system does not take a file
+        fd, name = __import__("tempfile").mkstemp(prefix=".usdface-probe-", dir=folder)
+    except OSError:
+        return False
+    os.close(fd)
+    os.unlink(name)
+    return True

@@ -1,0 +1,411 @@
+"""Run a manifest's shots with dask.distributed: an in-process LocalCluster or a farm's scheduler.
+
+Each shot is one Dask task that runs the same processors as the command line (``run``, then
+``check`` if asked) through :func:`execute_shot`. A task never raises for a shot's own failure: it
+returns the shot's record (status, timings, error), so one broken shot never stops the others; a
+worker that dies is reported for the shots it was running. Workers compute with one BLAS and one
+numba thread (one shot per core, and the same floating-point operation order on every machine).
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+import time
+import traceback
+from pathlib import Path
+
+from .. import __version__
+from ..errors import OptionError, UsdFaceError
+from .manifest import Manifest, Shot
+
+log = logging.getLogger("usdface")
+
+#: how long a client waits for a scheduler before giving up (seconds)
+CONNECT_TIMEOUT = 5.0
+#: thread variables fixed in every worker (before numpy loads where we start the process)
+THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+              "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1", "NUMEXPR_NUM_THREADS": "1"}
+
+
+# -- one shot (runs on a worker) ------------------------------------------------------------------
+
+def execute_shot(shot: Shot, cache_root: str | None) -> dict:
+    """Run one shot in this process; returns its record (never raises for the shot's errors)."""
+    started = time.perf_counter()
+    rec = {"name": shot.name, "output": shot.output, "mesh": shot.mesh, "capture": shot.capture,
+           "status": "failed", "seconds": None, "error": None, "steps": {}, "cache": {},
+           "host": _worker_name()}
+    try:
+        with single_threaded():
+            cache = None
+            if cache_root is not None:
+                from .cache import ContentCache
+
+                cache = ContentCache(cache_root)
+            capture = shot.capture
+            if shot.is_video:
+                capture = _track(shot)
+            from ..processors.run import run
+
+            summary = run(shot.mesh, capture, shot.output, cache=cache, **shot.options)
+            rec["steps"] = {k: v.get("seconds") for k, v in summary["steps"].items()}
+            rec["frames"] = summary["frames"]
+            rec["vertices"] = summary["vertices"]
+            rec["cache"] = {k: v["cache"]["status"] for k, v in summary["steps"].items() if "cache" in v}
+            if "check" in shot.processors:
+                from ..usd.validation import check_layer
+
+                findings = check_layer(str(Path(shot.output) / "shot.usda"))
+                errors = [str(f) for f in findings if f.severity == "error"]
+                rec["check"] = {"errors": len(errors), "findings": len(findings)}
+                if errors:
+                    raise UsdFaceError(f"usdface check found {len(errors)} error(s) in shot.usda: {errors[0]}")
+            rec["status"] = "ok"
+    except UsdFaceError as exc:
+        rec["error"] = str(exc)
+        rec["status"] = "unsupported" if getattr(exc, "unsupported", False) else "failed"
+    except Exception as exc:  # noqa: BLE001 - a bug or a library error must not stop the batch
+        rec["error"] = f"{type(exc).__name__}: {exc}"
+        rec["traceback"] = traceback.format_exc(limit=8)
+    rec["seconds"] = round(time.perf_counter() - started, 3)
+    return rec
+
+
+class single_threaded:
+    """One BLAS/OpenMP thread (threadpoolctl) and one numba thread while a shot runs."""
+
+    def __enter__(self):
+        from threadpoolctl import threadpool_limits
+
+        self._limits = threadpool_limits(limits=1)
+        self._numba = None
+        try:
+            import numba
+
+            self._numba = numba.get_num_threads()
+            numba.set_num_threads(1)
+        except (ImportError, ValueError):
+            pass
+        return self
+
+    def __exit__(self, *exc):
+        self._limits.restore_original_limits()
+        if self._numba is not None:
+            import numba
+
+            numba.set_num_threads(self._numba)
+        return False
+
+
+class UnsupportedError(UsdFaceError):
+    unsupported = True
+
+
+def video_unsupported_reason(capture: str) -> str:
+    """Why a video capture cannot be run yet (checked at run time: `usdface track` is arriving)."""
+    import importlib.util
+
+    name = Path(capture).name
+    if importlib.util.find_spec("usdface.processors.track") is None:
+        return (f"capture {name} is a video: it needs `usdface track`, which this usdface installation "
+                "does not have yet")
+    return (f"capture {name} is a video: `usdface track` is installed but writes 2D tracks, and the batch "
+            "does not yet chain track -> 3D capture -> run; track it by hand and give the capture layer")
+
+
+def _track(shot: Shot) -> str:
+    raise UnsupportedError(video_unsupported_reason(shot.capture))
+
+
+def _worker_name() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return "local"
+
+
+# -- resume ---------------------------------------------------------------------------------------
+
+def shot_is_current(shot: Shot) -> tuple[bool, str]:
+    """Whether OUTDIR holds this shot's outputs with matching provenance; (answer, reason).
+
+    Checks: every output file exists; summary.json's run provenance equals this shot's (usdface
+    version, options, input names and sha256); and each layer's provenance names the usdface
+    version and inputs whose sha256 equal the files in OUTDIR (the chain was not edited since).
+    """
+    from ..processors.run import OUTPUT_FILES, run_options, run_provenance
+
+    out = Path(shot.output)
+    missing = [f for f in OUTPUT_FILES if not (out / f).is_file()]
+    if missing:
+        return False, f"missing {', '.join(missing)}"
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+    except (OSError, ValueError):
+        return False, "summary.json unreadable"
+    opts = {k: v for k, v in shot.options.items()}
+    capture = shot.capture if not shot.is_video else str(out / "tracked.usdc")
+    if not Path(capture).is_file():
+        return False, "capture missing"
+    expected = run_provenance(shot.mesh, capture, run_options(**opts), layout=opts.get("layout"),
+                              stiffness=opts.get("stiffness"))
+    if summary.get("provenance") != expected:
+        old = summary.get("provenance") or {}
+        what = [k for k in ("usdfaceVersion", "options", "inputs") if old.get(k) != expected.get(k)]
+        return False, f"provenance differs ({', '.join(what) or 'absent'})"
+    from ..usd.layers import file_digest
+
+    digests = {}
+    for name in ("mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc", "anim.usdc"):
+        prov = _layer_provenance(out / name)
+        if prov is None or prov.get("usdfaceVersion") != __version__:
+            return False, f"{name}: provenance absent or from another usdface version"
+        for role, rec in json.loads(prov.get("inputs", "{}")).items():
+            f = out / rec["file"]
+            if f.name in OUTPUT_FILES:
+                if f.name not in digests:
+                    digests[f.name] = file_digest(f)
+                if digests[f.name] != rec["sha256"]:
+                    return False, f"{name}: its input {f.name} changed since it was written"
+    return True, "outputs current"
+
+
+def _layer_provenance(path: Path) -> dict | None:
+    from pxr import Sdf
+
+    layer = Sdf.Layer.OpenAsAnonymous(str(path), metadataOnly=True) if path.suffix == ".usdc" else \
+        Sdf.Layer.FindOrOpen(str(path))
+    if layer is None:
+        return None
+    data = dict(layer.customLayerData)
+    return dict(data["usdface"]) if "usdface" in data else None
+
+
+# -- the batch ------------------------------------------------------------------------------------
+
+def run_batch(manifest: Manifest, *, workers: int | None = None, scheduler: str | None = None,
+              resume: bool = False, force: bool = False, cache: str | None | bool = None,
+              summary_path: str | None = None, quiet: bool = False) -> dict:
+    """Run every shot; returns the batch summary (also written to the summary JSON file).
+
+    Parameters
+    ----------
+    workers : int, optional
+        LocalCluster size (default: the manifest's, else the number of cores, at most the number
+        of shots). 0 runs the shots one after the other in this process, without Dask.
+    scheduler : str, optional
+        ``tcp://HOST:PORT`` of a running Dask scheduler (a farm); its workers must see the
+        manifest's paths (a shared file system) and have usdface installed.
+    resume : bool
+        Skip shots whose outputs are current (:func:`shot_is_current`).
+    force : bool
+        Redo every shot (overrides ``resume``).
+    cache : str, False or None
+        Cache folder; False for none; None for the manifest's (default ``.usdface-cache``).
+    """
+    started = time.perf_counter()
+    t0 = time.time()
+    scheduler = scheduler or manifest.scheduler
+    cache_root = manifest.cache if cache is None else (None if cache is False else str(Path(cache).resolve()))
+    if cache_root is not None:
+        from .cache import ContentCache
+
+        ContentCache(cache_root)  # create it / fail early with a clear message
+    summary_path = Path(summary_path or manifest.summary)
+    records: dict[str, dict] = {}
+    todo: list[Shot] = []
+    for shot in manifest.shots:
+        if resume and not force:
+            current, reason = shot_is_current(shot)
+            if current:
+                records[shot.name] = {"name": shot.name, "output": shot.output, "mesh": shot.mesh,
+                                      "capture": shot.capture, "status": "skipped", "seconds": 0.0,
+                                      "error": None, "reason": "outputs current (resume)", "cache": {}}
+                continue
+        if shot.is_video:
+            records[shot.name] = {"name": shot.name, "output": shot.output, "mesh": shot.mesh,
+                                  "capture": shot.capture, "status": "unsupported", "seconds": 0.0,
+                                  "error": video_unsupported_reason(shot.capture), "cache": {}}
+            continue
+        todo.append(shot)
+    for shot in todo:
+        Path(shot.output).parent.mkdir(parents=True, exist_ok=True)
+
+    info = {"mode": "serial", "workers": 0, "dashboard": None, "scheduler": None}
+    status_out = _StatusPrinter(len(manifest.shots), quiet=quiet)
+    for rec in records.values():
+        status_out.done(rec)
+    if todo:
+        if workers == 0 and not scheduler:
+            for shot in todo:
+                status_out.start(shot)
+                records[shot.name] = rec = execute_shot(shot, cache_root)
+                status_out.done(rec)
+        else:
+            _run_dask(todo, cache_root, workers if workers is not None else manifest.workers, scheduler,
+                      records, info, status_out)
+    status_out.close()
+    ordered = [records[s.name] for s in manifest.shots]
+    counts = {k: sum(r["status"] == k for r in ordered) for k in ("ok", "skipped", "failed", "unsupported")}
+    cache_counts = {}
+    for r in ordered:
+        for step, st in r.get("cache", {}).items():
+            cache_counts.setdefault(step, {"hit": 0, "miss": 0})
+            cache_counts[step][st] = cache_counts[step].get(st, 0) + 1
+    summary = {
+        "manifest": str(manifest.path), "usdfaceVersion": __version__,
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(t0)),
+        "seconds": round(time.perf_counter() - started, 3), **info,
+        "cache": {"folder": cache_root, "steps": cache_counts},
+        "counts": counts, "shots": ordered, "summaryFile": str(summary_path),
+    }
+    _write_json(summary_path, summary)
+    summary["_text"] = summary_table(summary)
+    summary["_exit"] = 1 if counts["failed"] or counts["unsupported"] else 0
+    return summary
+
+
+def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -> None:
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise OptionError("usdface batch needs dask.distributed: pip install \"dask[distributed]\"") from None
+    import dask
+
+    # Dask logs at INFO to the root logger; keep its chatter out unless usdface is verbose
+    level = logging.getLogger("usdface").getEffectiveLevel()
+    for name in ("distributed", "bokeh", "tornado"):
+        logging.getLogger(name).setLevel(max(level, logging.WARNING) if level > logging.DEBUG else logging.INFO)
+    cluster = None
+    if scheduler:
+        if not scheduler.startswith(("tcp://", "tls://", "ws://", "wss://", "inproc://", "ucx://")):
+            raise OptionError(f"--scheduler {scheduler}: expected an address like tcp://HOST:8786")
+        try:
+            with dask.config.set({"distributed.comm.timeouts.connect": f"{CONNECT_TIMEOUT}s"}):
+                client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s", set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            raise OptionError(f"--scheduler {scheduler}: no Dask scheduler answered within {CONNECT_TIMEOUT:g} s "
+                              f"({type(exc).__name__}); start one with `dask scheduler` and workers with "
+                              f"`dask worker {scheduler}`, or leave out --scheduler to run on this machine") from None
+        info.update(mode="scheduler", scheduler=scheduler)
+    else:
+        n = workers or min(os.cpu_count() or 1, len(todo))
+        n = max(1, min(n, len(todo)))
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               env=dict(THREAD_ENV), silence_logs=logging.ERROR)
+        client = Client(cluster, set_as_default=False)
+        info.update(mode="local", scheduler=cluster.scheduler_address)
+    try:
+        info["workers"] = len(client.scheduler_info(n_workers=-1).get("workers", {})) \
+            if _takes_n_workers(client) else len(client.scheduler_info().get("workers", {}))
+        info["dashboard"] = _dashboard(client)
+        status_out.note(f"dask: {info['mode']} scheduler {info['scheduler']}, {info['workers']} worker(s)"
+                        + (f", dashboard {info['dashboard']}" if info["dashboard"] else
+                           " (dashboard: pip install bokeh)"))
+        if info["workers"] == 0:
+            status_out.note("dask: the scheduler has no workers yet; shots wait until one connects")
+        futures = {}
+        for shot in todo:
+            fut = client.submit(execute_shot, shot, cache_root, key=f"usdface-shot-{shot.name}-{id(shot)}",
+                                pure=False, retries=0)
+            futures[fut] = shot
+            status_out.start(shot)
+        for fut in as_completed(list(futures), loop=client.loop):
+            shot = futures[fut]
+            try:
+                rec = fut.result()
+            except Exception as exc:  # noqa: BLE001 - KilledWorker, a worker out of memory...
+                rec = {"name": shot.name, "output": shot.output, "mesh": shot.mesh, "capture": shot.capture,
+                       "status": "failed", "seconds": None, "cache": {},
+                       "error": f"the Dask task failed: {type(exc).__name__}: {exc}"}
+            records[shot.name] = rec
+            status_out.done(rec)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _takes_n_workers(client) -> bool:
+    import inspect
+
+    return "n_workers" in inspect.signature(client.scheduler_info).parameters
+
+
+def _dashboard(client) -> str | None:
+    try:
+        services = client.scheduler_info().get("services", {})
+        if "dashboard" not in services:
+            return None
+        return client.dashboard_link
+    except Exception:  # noqa: BLE001
+        return None
+
+
+class _StatusPrinter:
+    """An overall progress bar (on a terminal) and one status line per finished shot on stderr."""
+
+    def __init__(self, total: int, quiet: bool):
+        from ..progress import progress
+
+        self.quiet = quiet or logging.getLogger("usdface").getEffectiveLevel() > logging.WARNING
+        self.total = total
+        self.finished = 0
+        self.bar = progress(total=total, desc="shots", unit="shot")
+
+    def _write(self, line: str) -> None:
+        if self.quiet:
+            return
+        if hasattr(self.bar, "write"):
+            self.bar.write(line, file=sys.stderr)
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+    def note(self, line: str) -> None:
+        self._write(line)
+
+    def start(self, shot) -> None:
+        log.info("queued %s", shot.name)
+
+    def done(self, rec: dict) -> None:
+        self.finished += 1
+        self.bar.update(1)
+        secs = f"{rec['seconds']:.1f} s" if rec.get("seconds") else ""
+        err = f"  {rec['error'].splitlines()[0]}" if rec.get("error") else ""
+        self._write(f"[{self.finished}/{self.total}] {rec['status']:<11} {rec['name']} {secs}{err}")
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def summary_table(summary: dict) -> list[str]:
+    """The batch summary as terminal lines: one row per shot, then totals."""
+    rows = [("shot", "status", "seconds", "capture", "distances", "error")]
+    for r in summary["shots"]:
+        c = r.get("cache", {})
+        err = (r.get("error") or r.get("reason") or "").splitlines()
+        rows.append((r["name"], r["status"], f"{r['seconds']:.1f}" if r.get("seconds") is not None else "-",
+                     c.get("import-capture", "-"), c.get("distances", "-"), (err[0] if err else "")[:100]))
+    widths = [max(len(row[i]) for row in rows) for i in range(5)]
+    lines = ["  ".join(v.ljust(w) for v, w in zip(row[:5], widths)) + "  " + row[5] for row in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths) + "  -----")
+    n = summary["counts"]
+    cc = summary["cache"]["steps"]
+    cache_txt = "; ".join(f"{k}: {v.get('hit', 0)} hit(s), {v.get('miss', 0)} computed" for k, v in cc.items())
+    lines.append(f"{n['ok']} ok, {n['skipped']} skipped, {n['failed']} failed"
+                 + (f", {n['unsupported']} unsupported" if n["unsupported"] else "")
+                 + f" in {summary['seconds']:.1f} s ({summary['mode']}, {summary['workers']} worker(s))"
+                 + (f"; cache {cache_txt}" if cache_txt else ""))
+    lines.append(f"summary: {summary['summaryFile']}")
+    return lines
+
+
+def _write_json(path: Path, data: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n")
+    os.replace(tmp, path)
