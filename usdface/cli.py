@@ -60,6 +60,11 @@ def _distance_options(p: argparse.ArgumentParser, *, with_method: bool = True) -
                    help="markers on different mesh components: error, or Euclidean distance across them")
 
 
+def add_transfer_options(p: argparse.ArgumentParser) -> None:
+    """--rbf, --kernel, --stiffness, --regularization, --polynomial (transfer, run, skel)."""
+    _transfer_options(p)
+
+
 def _transfer_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("transfer")
     g.add_argument("--rbf", choices=["paper", "interpolate"], default="interpolate",
@@ -140,10 +145,18 @@ def _add_subcommands(sub) -> None:
                                    "distances and transfer the motion; OUTDIR gets mesh.usdc capture.usdc "
                                    "binding.usda analysis.usdc anim.usdc shot.usda summary.json.")
     p.add_argument("--mesh", required=True, help="face mesh (OBJ, PLY, ... or USD)")
-    p.add_argument("--capture", required=True, help="capture (Maya ASCII, C3D, TRC, CSV or a capture layer)")
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--layout", help="marker layout JSON")
-    src.add_argument("--auto", action="store_true", help="bind automatically")
+    p.add_argument("--capture", required=True,
+                   help="capture (Maya ASCII, C3D, TRC, CSV, a capture layer, or a video of painted dots)")
+    p.add_argument("--layout", help="marker layout JSON (required for a video capture)")
+    p.add_argument("--auto", nargs="?", const=True, type=int, metavar="N",
+                   help="bind automatically; for a video capture, --auto N finds N dots on the first frame")
+    p.add_argument("--output-kind", dest="output_kind", choices=["points", "skel", "both"],
+                   default="points", help="time-sampled points (anim.usdc), UsdSkel keyframes (skel.usdc), or both")
+    p.add_argument("--max-influences", type=int, default=8, metavar="K", help="skel: joints per vertex (default 8)")
+    g = p.add_argument_group("video capture")
+    g.add_argument("--seeds", help="JSON {marker: [x, y]} of every dot on the first frame (pixels)")
+    g.add_argument("--radius", type=float, nargs=2, default=(3.0, 10.0), metavar=("R1", "R2"),
+                   help="dot radius range in pixels (default 3 10)")
     p.add_argument("--retarget", choices=["displacement", "similarity"], default="displacement")
     p.add_argument("--mesh-units", choices=["mm", "cm", "dm", "m", "in", "ft"], help="units of the mesh file")
     p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"], default="hybrid",
@@ -268,7 +281,8 @@ def _cmd_run(args) -> dict:
                stabilize=_stabilize_arg(args.stabilize), fill_gaps=args.fill_gaps, filter=args.filter,
                cutoff=args.cutoff, trim=args.trim, neutral=_neutral_arg(args.neutral),
                region_radius_cm=args.region_radius, sigma_cm=args.sigma, threshold=args.threshold,
-               pin_border=args.pin_border, components=args.components)
+               pin_border=args.pin_border, components=args.components, output=args.output_kind,
+               seeds=args.seeds, radius=tuple(args.radius), max_influences=args.max_influences)
 
 
 def _cmd_info(args) -> dict:
@@ -305,6 +319,9 @@ def _cmd_plugin_path(args) -> dict:
 PLUGIN_COMMANDS = (
     "usdface.processors.evaluate",
     "usdface.processors.batch",
+    "usdface.processors.track",
+    "usdface.processors.lift",
+    "usdface.processors.skel",
 )
 
 

@@ -295,6 +295,10 @@ def _parse_options(merged, allowed, mesh, capture, layout, output, where, i, ent
             else:
                 argv += ["--stabilize", str(value)]
             continue
+        if action.nargs == "?" and isinstance(value, bool):  # e.g. --auto [N]: true = the bare flag
+            if value:
+                argv.append(opt)
+            continue
         if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
             if not isinstance(value, bool):
                 problems.append(f"{where(table, idx, key)}: {key} = {value!r}: expected true or false")

@@ -17,19 +17,48 @@ from ..errors import OptionError
 
 OUTPUT_FILES = ("mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc", "anim.usdc", "shot.usda",
                 "summary.json")
+OUTPUTS = ("points", "skel", "both")
+
+
+def is_video(path) -> bool:
+    """A movie file, an image-sequence pattern (name.####.png) or a folder of frames."""
+    from ..io.video import MOVIE_SUFFIXES, is_sequence_pattern
+
+    p = Path(path)
+    return p.suffix.lower() in MOVIE_SUFFIXES or is_sequence_pattern(str(path)) or p.is_dir()
+
+
+def output_files(*, output: str = "points", video: bool = False) -> tuple:
+    """The files a run writes into OUTDIR."""
+    files = ["mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc"]
+    if output in ("points", "both"):
+        files.append("anim.usdc")
+    if output in ("skel", "both"):
+        files.append("skel.usdc")
+    if video:
+        files.append("tracks.usdc")
+    files += ["shot.usda"] + (["shot_skel.usda"] if output == "both" else []) + ["summary.json"]
+    return tuple(files)
 
 
 def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", backend="graph",
         rbf="interpolate", kernel="gaussian", stiffness=None, regularization="auto", polynomial=False,
         retarget="displacement", mesh_units=None, units=None, rate=None, up_axis=None, stabilize="auto",
         fill_gaps=None, filter=None, cutoff=8.0, trim=None, neutral=None, region_radius_cm=1.0,
-        sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error", cache=None) -> dict:
+        sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error", cache=None,
+        output="points", seeds=None, radius=(3.0, 10.0), max_influences=8) -> dict:
     """Run the whole pipeline; returns the summary (also written to OUTDIR/summary.json).
 
     ``cache`` (a :class:`usdface.batch.cache.ContentCache`; default None, no cache) reuses imported
     captures and distance matrices computed before; the layers written are the same either way.
     The summary's ``provenance`` (see :func:`run_provenance`) records the usdface version, the
     options and the input files' names and sha256, so a batch can tell whether OUTDIR is current.
+
+    ``output``: "points" (time-sampled mesh points, anim.usdc), "skel" (UsdSkel keyframes,
+    skel.usdc) or "both" (shot.usda plays the points, shot_skel.usda the skeleton).
+    A video ``capture`` (movie, ``name.####.ext`` or a folder of frames) is tracked
+    (``seeds`` JSON or ``auto`` = N markers, ``radius`` in px) into OUTDIR/tracks.usdc and lifted
+    onto the mesh through ``layout`` into capture.usdc; a video needs ``layout``.
     """
     from .bind import bind
     from .distances import distances
@@ -38,15 +67,32 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
     from .transfer import transfer
     from ..usd.analysis_layer import write_shot_stage
 
-    if (layout is None) == (not auto):
-        raise OptionError("run: give exactly one of --layout LAYOUT.json or --auto")
-    for label, path in (("--mesh", mesh), ("--capture", capture), ("--layout", layout)):
+    if output not in OUTPUTS:
+        raise OptionError(f"--output {output}: expected one of {', '.join(OUTPUTS)}")
+    video = is_video(capture)
+    if video:
+        if layout is None:
+            raise OptionError(f"--capture {capture} is a video: give --layout LAYOUT.json (it names the markers and "
+                              "places them on the mesh; 2D tracks cannot be bound automatically)")
+        track_auto = auto if (auto is not True and auto) else None
+        if (seeds is None) == (track_auto is None):
+            raise OptionError(f"--capture {capture} is a video: give --seeds SEEDS.json or --auto N (the number of "
+                              "dots to find on the first frame)")
+    else:
+        if auto not in (True, False, None):
+            raise OptionError(f"--auto {auto}: a number of markers applies to video captures only")
+        if (layout is None) == (not auto):
+            raise OptionError("run: give exactly one of --layout LAYOUT.json or --auto")
+    for label, path in (("--mesh", mesh), ("--capture", None if video else capture), ("--layout", layout),
+                        ("--seeds", seeds)):
         if path is not None and not Path(path).is_file():
             raise OptionError(f"{label} {path}: no such file")
     out = Path(out_dir)
     if not out.parent.is_dir():
         raise OptionError(f"-o {out}: folder {out.parent} does not exist")
-    options = run_options(layout=layout, auto=auto, method=method, backend=backend, rbf=rbf, kernel=kernel,
+    files = output_files(output=output, video=video)
+    options = run_options(layout=layout, auto=auto, output=output, seeds=seeds, radius=radius,
+                          max_influences=max_influences, method=method, backend=backend, rbf=rbf, kernel=kernel,
                           stiffness=stiffness, regularization=regularization, polynomial=polynomial,
                           retarget=retarget, mesh_units=mesh_units, units=units, rate=rate, up_axis=up_axis,
                           stabilize=stabilize, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff, trim=trim,
@@ -58,27 +104,49 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
     steps: dict = {}
     work = Path(tempfile.mkdtemp(prefix=".usdface-run-", dir=out))
     try:
-        f = {name: work / name for name in OUTPUT_FILES}
-        t = time.perf_counter()
+        f = {name: work / name for name in files}
         steps["import-mesh"] = import_mesh(mesh, f["mesh.usdc"], units=mesh_units)
-        steps["import-capture"] = import_capture(capture, f["capture.usdc"], units=units, rate=rate,
-                                                 up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
-                                                 filter=filter, cutoff=cutoff, trim=trim, neutral=neutral,
-                                                 cache=cache)
-        steps["bind"] = bind(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], layout=layout, auto=auto,
-                             retarget=retarget)
+        if video:
+            from .lift import lift
+            from .track import track
+
+            steps["track"] = track(capture, f["tracks.usdc"], seeds=seeds, auto=track_auto, layout=layout,
+                                   mesh=mesh, radius=tuple(radius), rate=rate)
+            lifted = work / "lifted.usdc"
+            steps["lift"] = lift(f["tracks.usdc"], f["mesh.usdc"], lifted, layout=layout, neutral=neutral)
+            # the lifted capture still holds the head's motion in the image: condition it like any take
+            steps["import-capture"] = import_capture(lifted, f["capture.usdc"], stabilize=stabilize,
+                                                     fill_gaps=fill_gaps, filter=filter, cutoff=cutoff, trim=trim)
+        else:
+            steps["import-capture"] = import_capture(capture, f["capture.usdc"], units=units, rate=rate,
+                                                     up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
+                                                     filter=filter, cutoff=cutoff, trim=trim, neutral=neutral,
+                                                     cache=cache)
+        steps["bind"] = bind(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], layout=layout,
+                             auto=bool(auto) and not video, retarget=retarget)
         steps["distances"] = distances(f["mesh.usdc"], f["binding.usda"], f["analysis.usdc"], method=method,
                                        backend=backend, region_radius_cm=region_radius_cm, sigma_cm=sigma_cm,
                                        threshold=threshold, pin_border=pin_border, components=components,
                                        cache=cache)
-        steps["transfer"] = transfer(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], f["analysis.usdc"],
-                                     f["anim.usdc"], rbf=rbf, kernel=kernel, stiffness=stiffness,
-                                     regularization=regularization, polynomial=polynomial, method=method)
+        transfer_options = dict(rbf=rbf, kernel=kernel, stiffness=stiffness, regularization=regularization,
+                                polynomial=polynomial, method=method)
+        if "anim.usdc" in f:
+            steps["transfer"] = transfer(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"],
+                                         f["analysis.usdc"], f["anim.usdc"], **transfer_options)
+        if "skel.usdc" in f:
+            from .skel import skel
+
+            steps["skel"] = skel(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], f["analysis.usdc"],
+                                 f["skel.usdc"], max_influences=max_influences, **transfer_options)
         cap = steps["import-capture"]
-        write_shot_stage(f["shot.usda"], layers=[f["anim.usdc"], f["analysis.usdc"], f["binding.usda"]],
-                         rate=cap["rate"], start=cap["startTimeCode"],
-                         end=cap["startTimeCode"] + cap["frames"] - 1, units=steps["import-mesh"]["units"],
-                         stabilized_capture=cap["stabilized"])
+        shots = [("shot.usda", "anim.usdc" if "anim.usdc" in f else "skel.usdc")]
+        if output == "both":
+            shots.append(("shot_skel.usda", "skel.usdc"))
+        for shot_name, motion in shots:
+            write_shot_stage(f[shot_name], layers=[f[motion], f["analysis.usdc"], f["binding.usda"]],
+                             rate=cap["rate"], start=cap["startTimeCode"],
+                             end=cap["startTimeCode"] + cap["frames"] - 1, units=steps["import-mesh"]["units"],
+                             stabilized_capture=cap["stabilized"])
         summary = {
             "outputDir": str(out), "shot": str(out / "shot.usda"), "mesh": str(mesh), "capture": str(capture),
             "method": method, "backend": backend if method != "euclidean" else None, "rbf": rbf, "kernel": kernel,
@@ -91,13 +159,13 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         # paths in the summary name the final files, not the private work folder
         text = json.dumps(summary, indent=2, default=str).replace(str(work), str(out))
         f["summary.json"].write_text(text + "\n")
-        for name in OUTPUT_FILES:
+        for name in files:
             os.replace(work / name, out / name)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     summary = json.loads(text)
     b = summary["steps"]["bind"]
-    tr = summary["steps"]["transfer"]
+    tr = summary["steps"].get("transfer") or summary["steps"]["skel"]
     summary["_text"] = [
         f"shot: {out / 'shot.usda'}  ({summary['frames']} frames at {summary['rate']:g} Hz, "
         f"{summary['vertices']} vertices, {summary['markers']} markers)",
@@ -106,17 +174,29 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         f"  binding: {b['method']}, residual median {b['residualMedian']:.3f} max {b['residualMax']:.3f} {b['units']}",
         f"  distances: {method}{'/' + backend if method != 'euclidean' else ''} in "
         f"{summary['steps']['distances']['seconds']:.2f} s",
-        f"  transfer: {tr['mode']} {tr['kernel']}, width {tr['widthMedian']:.3g} {tr['units']}, "
-        f"{tr['seconds']:.2f} s",
-        f"  total {summary['seconds']:.1f} s; files: {', '.join(OUTPUT_FILES)}",
-    ]
+        f"  transfer: {tr['mode']} {tr['kernel']}, {tr['seconds']:.2f} s"
+        + (f", width {tr['widthMedian']:.3g} {tr['units']}" if "widthMedian" in tr else ""),
+    ] + ([f"  video: {summary['steps']['track']['frames']} frames tracked, "
+          f"{100 * summary['steps']['track']['validFraction']:.1f}% of marker samples found, lifted with depth "
+          f"{summary['steps']['lift']['depth']}"] if video else []) \
+      + ([f"  skeleton: {summary['steps']['skel']['joints']} joints, "
+          f"{summary['steps']['skel']['maxInfluences']} influences per vertex"] if "skel" in summary["steps"] else []) \
+      + [f"  total {summary['seconds']:.1f} s; files: {', '.join(files)}"]
     return summary
 
 
 def run_options(**options) -> dict:
-    """The options of a run as recorded in its provenance (JSON types; paths by file name)."""
+    """The options of a run as recorded in its provenance (JSON types; paths by file name).
+
+    Options not given take :func:`run`'s defaults, so callers that pass a subset (a batch
+    manifest) and :func:`run` itself record the same dict for the same job.
+    """
+    import inspect
+
+    defaults = {name: p.default for name, p in inspect.signature(run).parameters.items()
+                if p.kind is p.KEYWORD_ONLY and name != "cache"}
     rec = {}
-    for k, v in sorted(options.items()):
+    for k, v in sorted({**defaults, **options}.items()):
         if k == "layout" and v is not None:
             v = Path(v).name
         elif k == "stiffness" and v is not None and not isinstance(v, (int, float, dict)) and Path(str(v)).is_file():

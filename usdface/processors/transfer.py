@@ -39,20 +39,16 @@ def parse_stiffness(value):
     return data
 
 
-def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rbf="interpolate",
-             kernel="gaussian", stiffness=None, regularization="auto", polynomial=False, method=None,
-             all_invalid="error", chunk_frames=DEFAULT_CHUNK_FRAMES,
-             max_amplification=DEFAULT_MAX_AMPLIFICATION) -> dict:
-    """Transfer the capture's marker displacements to every vertex; write the animation layer."""
-    from ..capture.retarget import marker_displacements
-    from ..rbf.stability import amplification, fit_stable, marker_residual
-    from ..rbf.stiffness import DEFAULT_WIDTH_FACTOR, median_marker_spacing_from_points
-    from ..rbf.transfer import RBFTransfer
-    from ..usd.analysis_layer import read_distance_matrix, write_animation_layer
+def load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path, *, method=None):
+    """Read and cross-check the inputs of a transfer: (mesh, capture, binding, distance matrix).
+
+    Raises MarkerError / OptionError / InputError naming the file at fault when the analysis was
+    computed for other markers or another mesh.
+    """
+    from ..usd.analysis_layer import read_distance_matrix
     from ..usd.capture_layer import read_capture_layer
     from ..usd.mesh_layer import read_binding, read_mesh_layer
 
-    out = check_output_path(output)
     mesh, _ = read_mesh_layer(mesh_path)
     capture = read_capture_layer(capture_path)
     binding = read_binding(open_stage(binding_path, what="binding"), source=str(binding_path))
@@ -63,9 +59,31 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
     if dm.vertex_to_centre.shape[0] != mesh.n_points:
         raise OptionError(f"analysis {analysis_path} has {dm.vertex_to_centre.shape[0]} vertices, mesh {mesh_path} "
                           f"has {mesh.n_points}: they belong to different meshes")
-    disp = marker_displacements(capture, binding.names, binding.displacement_transform())
+    return mesh, capture, binding, dm
+
+
+def build_transfer_solver(mesh, binding, dm, *, rbf="interpolate", kernel="gaussian", stiffness=None,
+                          regularization="auto", polynomial=False, all_invalid="error",
+                          max_amplification=DEFAULT_MAX_AMPLIFICATION):
+    """The fitted RBF transfer with `usdface transfer`'s option handling (one place for it).
+
+    Parameters are `transfer()`'s options; ``mesh`` (FaceMesh), ``binding`` (Binding) and ``dm``
+    (DistanceMatrix) as returned by :func:`load_transfer_inputs`.
+
+    Returns
+    -------
+    solver : RBFTransfer
+        Fitted; ``solver.transfer_matrix`` is the N x M matrix B (vertex displacement = B @ marker
+        displacements when every marker is valid).
+    info : dict
+        ``regularization`` (the lambda used), ``choice`` (RegularizationChoice or None),
+        ``amplification``, ``markerResidual``, ``advice``, ``settings`` (FaceTransferAPI values).
+    """
+    from ..rbf.stability import amplification, fit_stable, marker_residual
+    from ..rbf.stiffness import DEFAULT_WIDTH_FACTOR, median_marker_spacing_from_points
+    from ..rbf.transfer import RBFTransfer
+
     centre_points = np.concatenate([binding.surface_points(mesh.points), mesh.points[dm.constraint_vertices]])
-    t0 = time.perf_counter()
     widths = parse_stiffness(stiffness)
     if widths is None:  # the default rule on Euclidean marker spacing, whatever the distance method
         widths = DEFAULT_WIDTH_FACTOR * median_marker_spacing_from_points(binding.surface_points(mesh.points))
@@ -112,6 +130,28 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
                            "tried": {str(k): v for k, v in choice.tried.items()}},
                        "retarget": binding.retarget, "distanceBackend": dm.backend},
     }
+    return solver, {"regularization": regularization, "choice": choice, "amplification": amp,
+                    "markerResidual": miss, "advice": advice, "settings": settings}
+
+
+def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rbf="interpolate",
+             kernel="gaussian", stiffness=None, regularization="auto", polynomial=False, method=None,
+             all_invalid="error", chunk_frames=DEFAULT_CHUNK_FRAMES,
+             max_amplification=DEFAULT_MAX_AMPLIFICATION) -> dict:
+    """Transfer the capture's marker displacements to every vertex; write the animation layer."""
+    from ..capture.retarget import marker_displacements
+    from ..usd.analysis_layer import write_animation_layer
+
+    out = check_output_path(output)
+    mesh, capture, binding, dm = load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path,
+                                                      method=method)
+    disp = marker_displacements(capture, binding.names, binding.displacement_transform())
+    t0 = time.perf_counter()
+    solver, info = build_transfer_solver(mesh, binding, dm, rbf=rbf, kernel=kernel, stiffness=stiffness,
+                                         regularization=regularization, polynomial=polynomial,
+                                         all_invalid=all_invalid, max_amplification=max_amplification)
+    regularization, choice = info["regularization"], info["choice"]
+    amp, miss, advice, settings = info["amplification"], info["markerResidual"], info["advice"], info["settings"]
     options = {"rbf": rbf, "kernel": kernel, "stiffness": stiffness, "regularization": regularization,
                "polynomial": polynomial, "method": dm.method, "all_invalid": all_invalid}
     prov = provenance("transfer", options=options, inputs={"mesh": mesh_path, "capture": capture_path,

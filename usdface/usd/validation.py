@@ -194,14 +194,6 @@ def _check_transfer(prim: Usd.Prim, time_range=None):
     return errors
 
 
-def _check_stage_units(stage: Usd.Stage, time_range=None):
-    if not stage.GetRootLayer().pseudoRoot.GetInfo("metersPerUnit") and not stage.HasAuthoredMetadata("metersPerUnit"):
-        site = UsdValidation.ValidationErrorSite(stage.GetRootLayer(), stage.GetPseudoRoot().GetPath())
-        return [UsdValidation.ValidationError("NoUnits", UsdValidation.ValidationErrorType.Error, [site],
-                                              "the layer has no metersPerUnit; usdface never guesses units")]
-    return []
-
-
 _RULES = (
     ("usdface:MarkerSetConsistency", "UsdFaceMarkerSetAPI", _check_marker_set,
      "Marker names unique and one per point, no NaN points, validity per marker, rate = timeCodesPerSecond."),
@@ -228,11 +220,6 @@ def register_validators() -> None:
         md = UsdValidation.ValidatorMetadata(name=name, keywords=[KEYWORD], doc=doc, schemaTypes=[schema_type],
                                              isTimeDependent=False, isSuite=False)
         reg.RegisterPrimValidator(md, fn)
-    name = "usdface:StageUnits"
-    if not reg.HasValidator(name):
-        md = UsdValidation.ValidatorMetadata(name=name, keywords=[KEYWORD], doc="metersPerUnit authored.",
-                                             schemaTypes=[], isTimeDependent=False, isSuite=False)
-        reg.RegisterStageValidator(md, _check_stage_units)
     _registered = True
 
 
@@ -243,11 +230,18 @@ _SEVERITY = {
 }
 
 
+def _is_image_track_layer(stage: Usd.Stage) -> bool:
+    """Whether the stage's marker sets are 2D image tracks (usdface:markerSet:dimensions = 2)."""
+    sets = [p for p in stage.Traverse() if p.HasAPI("FaceMarkerSetAPI")]
+    return bool(sets) and all(p.GetAttribute("usdface:markerSet:dimensions").Get() == 2 for p in sets)
+
+
 def check_layer(path: str | os.PathLike) -> list[Finding]:
     """Run every UsdValidation validator (USD's and usdface's) on the stage opened from ``path``."""
     register_validators()
     stage = open_stage(path, what="file")
     validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
+    image_space = _is_image_track_layer(stage)
     findings = []
     for error in UsdValidation.ValidationContext(validators).Validate(stage):
         if error.HasNoError():
@@ -257,6 +251,10 @@ def check_layer(path: str | os.PathLike) -> list[Finding]:
         if sites:
             s = sites[0]
             site = str(s.GetPrim().GetPath()) if s.IsPrim() else (s.GetLayer().identifier if s.GetLayer() else "")
-        findings.append(Finding(_SEVERITY.get(error.GetType(), "error"), error.GetIdentifier(), site, error.GetMessage()))
+        severity, message = _SEVERITY.get(error.GetType(), "error"), error.GetMessage()
+        if image_space and "MissingMetersPerUnit" in error.GetIdentifier():
+            # 2D tracks are in pixels: no metric scale exists, and a made-up one would mislead
+            severity, message = "warning", message + " (a 2D image-track layer: pixels have no metric scale)"
+        findings.append(Finding(severity, error.GetIdentifier(), site, message))
     findings.sort(key=lambda f: (f.severity != "error", f.rule, f.site))
     return findings

@@ -1,0 +1,425 @@
+"""Rendered test videos of a face wearing coloured dots, with exact ground truth.
+
+No public video of a face wearing painted markers exists, so the tracker is tested on videos
+rendered from real data: a real marker capture (AnimFace ``JawMoCap.ma``, 41 markers, cm,
+60 Hz; CC BY-SA 4.0) is given a rigid head motion (sway, nods and a sudden jerk), projected
+orthographically from the front, and drawn as anti-aliased, motion-blurred dots over a real
+face photo (NASA astronaut portrait, public domain) whose face region is enlarged and warped
+with a thin-plate spline driven by the projected markers, so skin, eyes and mouth follow the
+motion. Nuisances of real footage: lighting that dims and swings across the clip, motion blur
+(background and dots), optical blur, sensor noise, lossy MPEG-4 compression (when written with
+:func:`write_clip`), a hand-shaped occluder passing over some markers, skin-coloured moles
+(dot-sized distractors) and blue non-dots (a line and a large patch).
+
+Ground truth (:attr:`SyntheticClip.truth`) is the coverage-weighted centroid of each dot as
+drawn (sub-pixel exact, motion blur included), in OpenCV's pixel convention (integer = pixel
+centre, y down); :attr:`SyntheticClip.visible` is the fraction of each dot not hidden by the hand.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, OptionError
+
+__all__ = ["SyntheticClip", "render_marker_video", "animface_clip", "write_clip", "write_truth_csv"]
+
+
+def _cv2():
+    import cv2
+
+    return cv2
+
+
+@dataclass
+class SyntheticClip:
+    """A rendered clip and its ground truth.
+
+    Attributes
+    ----------
+    frames : ndarray, shape (F, H, W, 3), uint8
+        BGR frames before compression.
+    names : tuple of str, length M
+    truth : ndarray, shape (F, M, 2), float64
+        Dot centres as drawn (pixels, OpenCV convention).
+    visible : ndarray, shape (F, M), float64
+        Fraction of each dot's coverage not hidden by the occluder (1 = fully visible).
+    rate : float
+        Frames per second.
+    radius : float
+        Dot radius (pixels).
+    """
+
+    frames: np.ndarray
+    names: tuple
+    truth: np.ndarray
+    visible: np.ndarray
+    rate: float
+    radius: float
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.frames.shape[2], self.frames.shape[1]
+
+    def seeds(self, frame: int = 0, *, jitter: float = 0.0, seed: int = 0) -> dict:
+        """Seed points ``{name: [x, y]}`` at ``frame`` (optionally jittered, as a user would click)."""
+        rng = np.random.default_rng(seed)
+        xy = self.truth[frame] + rng.uniform(-jitter, jitter, size=self.truth[frame].shape)
+        return {n: [round(float(x), 2), round(float(y), 2)] for n, (x, y) in zip(self.names, xy)}
+
+
+def _head_motion(t: np.ndarray, *, sway: float, jerk_at: float | None, jerk: float, nod: float):
+    """Rigid head motion at (fractional) frames ``t``: yaw (rad), roll (rad), translation (px)."""
+    yaw = np.deg2rad(6.0) * np.sin(2 * np.pi * t / 70.0)
+    roll = np.deg2rad(3.0) * np.sin(2 * np.pi * t / 53.0 + 0.7)
+    tx = sway * np.sin(2 * np.pi * t / 45.0)
+    ty = nod * np.sin(2 * np.pi * t / 31.0 + 1.3)
+    if jerk_at is not None:
+        # a sudden shift of `jerk` px over ~3 frames (smoothstep), then back over ~3 frames later
+        s = np.clip((t - jerk_at) / 3.0, 0, 1)
+        b = np.clip((t - jerk_at - 18.0) / 3.0, 0, 1)
+        tx = tx + jerk * (s * s * (3 - 2 * s) - b * b * (3 - 2 * b))
+        ty = ty - 0.15 * jerk * (s * s * (3 - 2 * s) - b * b * (3 - 2 * b))
+    return yaw, roll, np.stack([tx, ty], axis=-1)
+
+
+def _project(points: np.ndarray, yaw, roll, shift, *, centre3, scale, centre2) -> np.ndarray:
+    """Orthographic front view of (..., M, 3) cm points -> (..., M, 2) pixels (y down)."""
+    p = points - centre3
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    x = cy * p[..., 0] + sy * p[..., 2]
+    y = p[..., 1]
+    cr, sr = np.cos(roll), np.sin(roll)
+    u = cr * x - sr * y
+    v = sr * x + cr * y
+    return np.stack([centre2[0] + scale * u + shift[..., 0], centre2[1] - scale * v + shift[..., 1]], axis=-1)
+
+
+def _disc_coverage(centres: np.ndarray, radius: float, x0: int, y0: int, w: int, h: int, ss: int = 4) -> np.ndarray:
+    """Mean coverage over several disc positions (motion blur) on a (h, w) patch, ``ss x ss`` supersampling."""
+    o = (np.arange(ss) + 0.5) / ss - 0.5
+    xs = (np.arange(w)[:, None] + o[None, :]).ravel() + x0  # (w*ss,)
+    ys = (np.arange(h)[:, None] + o[None, :]).ravel() + y0
+    cov = np.zeros((h * ss, w * ss))
+    r2 = radius * radius
+    for cx, cy in centres:
+        cov += ((ys[:, None] - cy) ** 2 + (xs[None, :] - cx) ** 2) <= r2
+    cov /= len(centres)
+    return cov.reshape(h, ss, w, ss).mean(axis=(1, 3))
+
+
+def render_marker_video(positions: np.ndarray, names, photo: np.ndarray, photo_landmarks: dict, *,
+                        size=(512, 640), rate: float = 30.0, px_per_cm: float = 30.0, radius: float = 6.0,
+                        colour=(215, 70, 20), sway: float = 15.0, nod: float = 3.0, jerk: float = 30.0,
+                        jerk_at: float | None = 0.45, shutter: float = 0.5, noise: float = 2.5,
+                        lighting: bool = True, occluder: tuple | None = (0.6, 0.85), distractors: bool = True,
+                        seed: int = 0) -> SyntheticClip:
+    """Render a clip of coloured dots on a warped face photo (module docstring).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (F, M, 3)
+        Marker positions in cm (Y up, face looking down +Z), one row per output frame.
+    names : sequence of str, length M
+    photo : ndarray, shape (h, w, 3), uint8 BGR
+        The face photo.
+    photo_landmarks : dict
+        ``{marker name: (x, y)}`` photo pixels of some of the markers (at least 6) at rest.
+    size : (W, H)
+        Frame size in pixels.
+    rate : float
+        Frames per second of the clip.
+    px_per_cm : float
+        Image scale at the face.
+    radius : float
+        Dot radius, pixels.
+    colour : (B, G, R)
+        Dot paint colour before lighting.
+    sway, nod, jerk : float
+        Head motion amplitudes in pixels (horizontal sway, vertical nod, sudden jerk).
+    jerk_at : float, optional
+        Where the jerk happens, as a fraction of the clip (None: no jerk).
+    shutter : float
+        Exposure as a fraction of the frame interval (motion blur length).
+    noise : float
+        Sensor noise standard deviation, 8-bit levels.
+    lighting : bool
+        Dim the light by 25% across the clip, with a side gradient that swings.
+    occluder : (start, end), optional
+        A hand passes over the lower right face between these fractions of the clip.
+    distractors : bool
+        Add skin-coloured moles and blue non-dots.
+    seed : int
+        Random seed (noise, textures).
+    """
+    cv2 = _cv2()
+    from ..scan.warp import ThinPlateSpline
+
+    pos = np.asarray(positions, dtype=np.float64)
+    names = tuple(names)
+    f_count, m = pos.shape[:2]
+    if pos.ndim != 3 or pos.shape[2] != 3 or len(names) != m:
+        raise OptionError(f"render_marker_video: positions must be (F, {len(names)}, 3); got {pos.shape}")
+    if np.isnan(pos).any():
+        raise InputError("render_marker_video: positions contain invalid (NaN) samples; fill them first")
+    w, h = int(size[0]), int(size[1])
+    rng = np.random.default_rng(seed)
+    centre3 = np.nanmean(pos[0], axis=0)
+    centre3[1] = 0.5 * (pos[:, :, 1].min() + pos[:, :, 1].max())
+    centre2 = np.array([w / 2.0, h / 2.0])
+    jt = None if jerk_at is None else jerk_at * f_count
+
+    def at(t):
+        """Projected markers (len(t), M, 2) at fractional frames t."""
+        t = np.asarray(t, dtype=np.float64)
+        i0 = np.clip(np.floor(t).astype(int), 0, f_count - 1)
+        i1 = np.clip(i0 + 1, 0, f_count - 1)
+        a = np.clip(t - i0, 0, 1)[:, None, None]
+        p = pos[i0] * (1 - a) + pos[i1] * a
+        yaw, roll, shift = _head_motion(t, sway=sway, jerk_at=jt, jerk=jerk, nod=nod)
+        return _project(p, yaw[:, None], roll[:, None], shift[:, None, :], centre3=centre3, scale=px_per_cm,
+                        centre2=centre2)
+
+    # centre the motion's bounding box in the frame; every dot must stay inside
+    everywhere = at(np.arange(f_count, dtype=np.float64))
+    lo, hi = everywhere.min(axis=(0, 1)), everywhere.max(axis=(0, 1))
+    centre2 = centre2 - 0.5 * (lo + hi) + np.array([w / 2.0, h / 2.0])
+    margin = radius + 2
+    if (hi - lo)[0] > w - 2 * margin or (hi - lo)[1] > h - 2 * margin:
+        raise OptionError(f"render_marker_video: the markers span {hi[0] - lo[0]:.0f}x{hi[1] - lo[1]:.0f} px at "
+                          f"{px_per_cm:g} px/cm; a {w}x{h} frame is too small (lower px_per_cm or the motion)")
+
+    # photo positions of all markers: TPS from the rest pose (projected, no head motion) to the photo
+    rest = _project(pos[0], 0.0, 0.0, np.zeros(2), centre3=centre3, scale=px_per_cm, centre2=centre2)
+    known = [i for i, n in enumerate(names) if n in photo_landmarks]
+    if len(known) < 6:
+        raise InputError(f"render_marker_video: {len(known)} photo landmarks match the markers; need 6")
+    to_photo = ThinPlateSpline(rest[known], np.array([photo_landmarks[names[i]] for i in known], float),
+                               smoothing=50.0)
+    photo_pts = to_photo(rest)
+
+    # static textures: moles (skin-coloured dots) at fixed face positions, the hand's skin
+    grid_step = 8
+    gx, gy = np.meshgrid(np.arange(0, w + grid_step, grid_step, dtype=np.float64),
+                         np.arange(0, h + grid_step, grid_step, dtype=np.float64))
+    grid = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    photo_f = photo.astype(np.float32)
+    moles = []
+    if distractors:
+        for _ in range(6):
+            a, b = rng.choice(m, 2, replace=False)
+            t_ = rng.uniform(0.35, 0.65)
+            moles.append((a, b, t_))
+
+    sub = np.linspace(-0.5 * shutter, 0.5 * shutter, 5)
+    truth = np.zeros((f_count, m, 2))
+    visible = np.ones((f_count, m))
+    frames = np.zeros((f_count, h, w, 3), np.uint8)
+    ss = 4
+    pad = int(math.ceil(radius + 2))
+    for f in range(f_count):
+        q_all = at(f + sub)  # (5, M, 2)
+        q = q_all[2]
+        # -- warped photo (backward map output -> photo by a TPS through the markers) -----------
+        warp = ThinPlateSpline(q, photo_pts, smoothing=5.0)
+        src = warp(grid).astype(np.float32).reshape(gy.shape + (2,))
+        mapx = cv2.resize(src[..., 0], (gx.shape[1] * grid_step, gx.shape[0] * grid_step),
+                          interpolation=cv2.INTER_LINEAR)[:h, :w]
+        mapy = cv2.resize(src[..., 1], (gx.shape[1] * grid_step, gx.shape[0] * grid_step),
+                          interpolation=cv2.INTER_LINEAR)[:h, :w]
+        img = cv2.remap(photo_f, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        # background motion blur along the head's image velocity
+        v = (q_all[-1] - q_all[0]).mean(axis=0)
+        blur_len = float(np.hypot(*v))
+        if blur_len > 1.0:
+            k = int(math.ceil(blur_len)) | 1
+            ker = np.zeros((k, k), np.float32)
+            c0 = (k - 1) / 2
+            cv2.line(ker, (int(round(c0 - v[0] / 2)), int(round(c0 - v[1] / 2))),
+                     (int(round(c0 + v[0] / 2)), int(round(c0 + v[1] / 2))), 1.0, 1)
+            img = cv2.filter2D(img, -1, ker / ker.sum())
+        # -- distractors ----------------------------------------------------------------------
+        if distractors:
+            for a, b, t_ in moles:
+                p = q[a] * (1 - t_) + q[b] * t_
+                d = q[b] - q[a]
+                p = p + np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-9) * 14.0
+                cv2.circle(img, (int(round(p[0] * 16)), int(round(p[1] * 16))), int(radius * 16),
+                           (70, 95, 140), -1, cv2.LINE_AA, shift=4)
+            # a blue line (a pen stroke on the neck) and a big blue patch (clothing) - not dots
+            p0 = np.array([0.03 * w, 0.95 * h])
+            cv2.line(img, tuple(int(v) for v in p0), tuple(int(v) for v in p0 + np.array([60, 14])),
+                     tuple(float(c) for c in colour), 4, cv2.LINE_AA)
+            cv2.circle(img, (int(w * 0.9), int(h * 0.92)), int(4 * radius), tuple(float(c) for c in colour), -1,
+                       cv2.LINE_AA)
+        # -- dots (exact anti-aliased, motion-blurred coverage) ---------------------------------
+        for j in range(m):
+            cs = q_all[:, j, :]
+            x0 = int(math.floor(cs[:, 0].min())) - pad
+            y0 = int(math.floor(cs[:, 1].min())) - pad
+            x1 = int(math.ceil(cs[:, 0].max())) + pad + 1
+            y1 = int(math.ceil(cs[:, 1].max())) + pad + 1
+            cov = _disc_coverage(cs, radius, x0, y0, x1 - x0, y1 - y0, ss)
+            yy, xx = np.mgrid[y0:y1, x0:x1]
+            tot = cov.sum()
+            truth[f, j] = ((cov * xx).sum() / tot, (cov * yy).sum() / tot)
+            cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+            if cx1 <= cx0 or cy1 <= cy0:
+                continue
+            cc = cov[cy0 - y0:cy1 - y0, cx0 - x0:cx1 - x0, None].astype(np.float32)
+            # paint with a little texture: a real dot is not a flat colour
+            paint = np.asarray(colour, np.float32) * (1.0 + 0.03 * rng.standard_normal((cy1 - cy0, cx1 - cx0, 1)))
+            img[cy0:cy1, cx0:cx1] = img[cy0:cy1, cx0:cx1] * (1 - cc) + paint * cc
+        # -- hand-shaped occluder ----------------------------------------------------------------
+        if occluder is not None:
+            t0, t1 = occluder[0] * f_count, occluder[1] * f_count
+            if t0 <= f <= t1:
+                s = (f - t0) / max(t1 - t0, 1.0)
+                mouth = q[[names.index(n) for n in names if n.startswith("Mouth") or n.startswith("Chin")]] \
+                    if any(n.startswith("Mouth") for n in names) else q
+                target = mouth.mean(axis=0) + np.array([0.12 * w, 0.0])
+                start_pt = target + np.array([0.75 * w, 0.25 * h])
+                c = start_pt + (target - start_pt) * math.sin(math.pi * s) * 1.05
+                hand = np.zeros((h * 4, w * 4), np.uint8)
+                sc = 4 * 16
+                cv2.ellipse(hand, (int(c[0] * sc), int(c[1] * sc)), (int(70 * sc), int(80 * sc)), 20, 0, 360, 255, -1,
+                            cv2.LINE_8, shift=4)
+                for k, (ang, ln) in enumerate(((-150, 120), (-125, 140), (-100, 135), (-78, 115), (-30, 90))):
+                    a = math.radians(ang)
+                    fc = c + np.array([math.cos(a), math.sin(a)]) * (60 + ln / 2)
+                    cv2.ellipse(hand, (int(fc[0] * sc), int(fc[1] * sc)), (int(ln / 2 * sc), int(17 * sc)), ang, 0, 360,
+                                255, -1, cv2.LINE_8, shift=4)
+                hm = cv2.resize(hand, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
+                skin = np.array([105, 140, 190], np.float32) * (1 + 0.05 * rng.standard_normal((h, w, 1))).astype(np.float32)
+                img = img * (1 - hm[..., None]) + skin * hm[..., None]
+                for j in range(m):
+                    x, y = truth[f, j]
+                    xi, yi = int(round(x)), int(round(y))
+                    r = int(math.ceil(radius)) + 1
+                    ya, yb, xa, xb = max(yi - r, 0), min(yi + r + 1, h), max(xi - r, 0), min(xi + r + 1, w)
+                    if yb <= ya or xb <= xa:
+                        continue
+                    yy, xx = np.mgrid[ya:yb, xa:xb]
+                    disc = ((xx - x) ** 2 + (yy - y) ** 2) <= radius * radius
+                    visible[f, j] = 1.0 - float(hm[ya:yb, xa:xb][disc].mean()) if disc.any() else 1.0
+        # -- lighting, optics, noise --------------------------------------------------------------
+        if lighting:
+            s = f / max(f_count - 1, 1)
+            gain = 1.05 - 0.28 * s
+            swing = 0.18 * math.sin(2 * math.pi * s)
+            ramp = (1.0 + swing * (np.arange(w, dtype=np.float32) / w - 0.5))[None, :, None]
+            img = img * (gain * ramp)
+        img = cv2.GaussianBlur(img, (0, 0), 0.6)
+        if noise > 0:
+            img = img + rng.normal(0.0, noise, img.shape).astype(np.float32)
+        frames[f] = np.clip(img + 0.5, 0, 255).astype(np.uint8)
+    return SyntheticClip(frames=frames, names=names, truth=truth, visible=visible, rate=float(rate),
+                         radius=float(radius))
+
+
+def animface_clip(sample_assets, shared_data=None, *, n_frames: int = 90, step: int = 2, start: int = 300,
+                  **kwargs) -> SyntheticClip:
+    """Render a clip from the real AnimFace JawMoCap capture over the astronaut photo.
+
+    Parameters
+    ----------
+    sample_assets : path
+        The repository's sample_assets folder (``capture/JawMoCap.ma``, ``landmarks/astronaut.landmarks.json``).
+    shared_data : path, optional
+        Folder with ``images/astronaut.png`` (default: ``sample_assets/../../shared/data``).
+    n_frames, step, start : int
+        Capture frames ``start, start + step, ...`` (60 Hz capture; step 2 = 30 fps real time).
+    **kwargs
+        Passed to :func:`render_marker_video` (size, rate, px_per_cm, radius, ...).
+    """
+    from ..io.maya_ascii import read_maya_ascii
+
+    sample_assets = Path(sample_assets)
+    shared = Path(shared_data) if shared_data else sample_assets.resolve().parents[1] / "shared" / "data"
+    cap = read_maya_ascii(sample_assets / "capture" / "JawMoCap.ma")
+    idx = start + step * np.arange(n_frames)
+    if idx[-1] >= cap.n_frames:
+        raise OptionError(f"animface_clip: frames up to {idx[-1]} asked; the capture has {cap.n_frames}")
+    photo = _cv2().imread(str(shared / "images" / "astronaut.png"))
+    if photo is None:
+        raise InputError(f"{shared / 'images' / 'astronaut.png'}: cannot be read")
+    lms = json.loads((sample_assets / "landmarks" / "astronaut.landmarks.json").read_text())
+    lms = {k: v["image"] for k, v in lms.items()}
+    kwargs.setdefault("rate", cap.rate / step)
+    return render_marker_video(cap.positions[idx], cap.names, photo, lms, **kwargs)
+
+
+def write_clip(path, clip: SyntheticClip, *, fourcc: str = "mp4v") -> Path:
+    """Write the clip's frames as a movie (lossy MPEG-4 Part 2 by default, as pip OpenCV can)."""
+    cv2 = _cv2()
+    p = Path(path)
+    w, h = clip.size
+    vw = cv2.VideoWriter(str(p), cv2.VideoWriter_fourcc(*fourcc), clip.rate, (w, h))
+    if not vw.isOpened():
+        raise InputError(f"{p}: cannot write a {fourcc} video")
+    try:
+        for fr in clip.frames:
+            vw.write(fr)
+    finally:
+        vw.release()
+    return p
+
+
+def write_truth_csv(path, clip: SyntheticClip, *, min_visible: float = 0.999) -> None:
+    """Ground truth as a usdface 2D CSV (pixels; samples less than ``min_visible`` visible left empty)."""
+    from ..capture.model import Capture
+    from ..io.csv_format import write_csv
+
+    pos = np.zeros(clip.truth.shape[:2] + (3,))
+    pos[..., :2] = clip.truth
+    pos[clip.visible < min_visible] = np.nan
+    cap = Capture(names=clip.names, positions=pos, rate=clip.rate, units=None, source="synthetic",
+                  history=({"step": "render", "dims": 2},))
+    write_csv(path, cap, dims=2)
+
+
+def score_tracks(positions: np.ndarray, truth: np.ndarray, visible: np.ndarray, *, full: float = 0.999,
+                 hidden: float = 0.5) -> dict:
+    """Compare tracked positions with the ground truth.
+
+    Parameters
+    ----------
+    positions : ndarray (F, M, 2)
+        Tracked positions (NaN where invalid), markers in the truth's order.
+    truth : ndarray (F, M, 2)
+    visible : ndarray (F, M)
+        Visible fraction of each dot.
+    full, hidden : float
+        A dot is *visible* when at least ``full`` of it shows, *occluded* when less than ``hidden``.
+
+    Returns
+    -------
+    dict
+        ``mean_error``, ``p99_error``, ``max_error`` (pixels, over found visible dots),
+        ``found`` (fraction of visible dots found), ``occluded_invalid`` (fraction of occluded dots
+        marked invalid; 1.0 when none is occluded), ``identity_switches`` (samples nearer another
+        marker's true position than their own), ``n_visible``, ``n_occluded``.
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    ok = np.isfinite(pos).all(axis=2)
+    vis = visible >= full
+    occ = visible < hidden
+    err = np.linalg.norm(pos - truth, axis=2)
+    e = err[ok & vis]
+    d_all = np.linalg.norm(pos[:, :, None, :] - truth[:, None, :, :], axis=3)  # (F, M, M)
+    nearest = np.where(np.isfinite(d_all), d_all, np.inf).argmin(axis=2)
+    switches = int((ok & (nearest != np.arange(pos.shape[1])[None, :])).sum())
+    return {
+        "mean_error": float(e.mean()) if e.size else float("nan"),
+        "p99_error": float(np.percentile(e, 99)) if e.size else float("nan"),
+        "max_error": float(e.max()) if e.size else float("nan"),
+        "found": float((ok & vis).sum() / max(vis.sum(), 1)),
+        "occluded_invalid": float((~ok & occ).sum() / occ.sum()) if occ.any() else 1.0,
+        "identity_switches": switches,
+        "n_visible": int(vis.sum()),
+        "n_occluded": int(occ.sum()),
+    }
