@@ -31,13 +31,14 @@ def _capture_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--up-axis", choices=["Y", "Z"], help="the source's up axis (default: Z for C3D, Y otherwise)")
     g.add_argument("--stabilize", nargs="?", const="auto", metavar="auto|M1,M2,...",
                    help="remove rigid head motion: 'auto' picks the most rigid markers, or name them")
-    g.add_argument("--fill-gaps", type=int, metavar="N", help="fill gaps of at most N frames")
+    g.add_argument("--fill-gaps", type=_positive_int, metavar="N", help="fill gaps of at most N frames")
     g.add_argument("--filter", choices=["butterworth", "savgol"], help="zero-phase noise filter")
-    g.add_argument("--cutoff", type=float, default=8.0, metavar="HZ", help="filter cutoff (default 8 Hz)")
+    g.add_argument("--cutoff", type=_positive_float, default=8.0, metavar="HZ",
+                   help="filter cutoff (default 8 Hz; below half the capture rate)")
     g.add_argument("--trim", nargs=2, type=int, metavar=("START", "END"),
                    help="keep frames START..END-1 (0-based frame indices of the file)")
     g.add_argument("--start-frame", type=int, metavar="F", help="time code of the first frame after trimming")
-    g.add_argument("--resample", type=float, metavar="HZ", help="resample to this rate")
+    g.add_argument("--resample", type=_positive_float, metavar="HZ", help="resample to this rate")
     g.add_argument("--neutral", default=None, metavar="FRAME|auto",
                    help="neutral frame (0-based index after trimming) or 'auto' (default: first frame)")
 
@@ -202,10 +203,31 @@ def _add_subcommands(sub) -> None:
     p = sub.add_parser("plugin-path", help="print the folder to put on PXR_PLUGINPATH_NAME (for DCCs)",
                        description="Print the folder holding usdface's plugInfo.json. DCCs import their own pxr "
                                    "before any plug-in: set PXR_PLUGINPATH_NAME to this folder before starting them.")
-    p.set_defaults(func=_cmd_plugin_path, json=False, verbose=0, quiet=False)
+    _add_common(p)
+    p.set_defaults(func=_cmd_plugin_path)
 
 
 # -- command implementations (parse -> processor -> report) ----------------------------------------
+
+def _positive_int(value):
+    try:
+        n = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number > 0; got {value!r}") from None
+    if n <= 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number > 0; got {value!r}")
+    return n
+
+
+def _positive_float(value):
+    try:
+        x = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 0; got {value!r}") from None
+    if not x > 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0; got {value!r}")
+    return x
+
 
 def _regularization_arg(value):
     if value == "auto":
@@ -282,7 +304,8 @@ def _cmd_run(args) -> dict:
                cutoff=args.cutoff, trim=args.trim, neutral=_neutral_arg(args.neutral),
                region_radius_cm=args.region_radius, sigma_cm=args.sigma, threshold=args.threshold,
                pin_border=args.pin_border, components=args.components, output=args.output_kind,
-               seeds=args.seeds, radius=tuple(args.radius), max_influences=args.max_influences)
+               seeds=args.seeds, radius=tuple(args.radius), max_influences=args.max_influences,
+               resample=args.resample, start_frame=args.start_frame)
 
 
 def _cmd_info(args) -> dict:

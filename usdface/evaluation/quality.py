@@ -122,7 +122,7 @@ AUTHORS_WIDTH_CM = 2.0
 
 METHODS = ("euclidean", "geodesic", "hybrid")
 MODES = ("paper", "interpolate")
-#: pinned-border variants: the whole outer border (pipeline default), nothing, or only the part of
+#: pinned-border variants: the whole outer border (`--pin-border all`), nothing, or only the part of
 #: the outer border above the mouth corners (the jaw's border is left free)
 PINS = ("border", "none", "upper")
 #: regions of the summary tables

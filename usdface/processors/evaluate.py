@@ -101,7 +101,7 @@ def evaluate_shapes(mesh_path, shapes_path, *, layout=None, binding=None, method
     methods, modes, pins : list of str, optional
         Subsets of euclidean/geodesic/hybrid, paper/interpolate, border/none/upper (default all).
     widths : list of str, optional
-        ``default`` (1.5 x median marker spacing) and/or widths in cm (default: default and 2).
+        ``default`` (1.1 x the Euclidean median marker spacing: the pipeline's rule) and/or widths in cm (default: default and 2).
     backend : str
         Geodesic back-end for geodesic and hybrid.
     heat, thin_plate : bool
@@ -242,7 +242,7 @@ def register_cli(subparsers) -> None:
                    help="pinned border variants for interpolate mode: border (whole outer border, the pipeline "
                         "default), none, upper (border above the mouth corners); default: all three")
     p.add_argument("--widths", nargs="+", metavar="W",
-                   help="kernel widths: 'default' (1.5 x median marker spacing) and/or cm values; default: default 2")
+                   help="kernel widths: 'default' (1.1 x the Euclidean median marker spacing, as `usdface run`) and/or cm values; default: default 2")
     p.add_argument("--backend", choices=["graph", "heat", "exact"], default="graph", help="geodesic back-end")
     p.add_argument("--heat", action="store_true", help="add a geodesic/heat interpolate row")
     p.add_argument("--thin-plate", action="store_true", help="add thin-plate spline + polynomial rows")

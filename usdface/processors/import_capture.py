@@ -18,7 +18,14 @@ def load_capture(path, *, units=None, rate=None, up_axis=None) -> Capture:
     if Path(path).suffix.lower() in USD_SUFFIXES:
         from ..usd.capture_layer import read_capture_layer
 
-        return read_capture_layer(path)
+        capture = read_capture_layer(path)
+        if units is not None and capture.units is not None and units != capture.units:
+            raise OptionError(f"--units {units} conflicts with capture layer {path} (in {capture.units}); "
+                              "layers are never rescaled on import")
+        if rate is not None and abs(rate - capture.rate) > 1e-9 * capture.rate:
+            raise OptionError(f"--rate {rate:g} conflicts with capture layer {path} ({capture.rate:g} Hz); "
+                              "use --resample to change the rate")
+        return capture
     from ..io.captures import read_capture
 
     return read_capture(path, units=units, rate=rate, up_axis=up_axis)
@@ -36,7 +43,11 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     reports: dict = {}
     if trim is not None:
         start, end = trim
-        if not (start <= capture.neutral_frame < (end if end is not None else capture.n_frames)):
+        stop = capture.n_frames if end is None else end
+        if not (0 <= start < stop <= capture.n_frames):
+            raise OptionError(f"--trim {start} {end}: expected 0 <= START < END <= {capture.n_frames} "
+                              f"(the capture {capture.source} has {capture.n_frames} frames)")
+        if not (start <= capture.neutral_frame < stop):
             # the file's neutral (its first frame) is cut away: start from the first kept frame;
             # --neutral, applied below, still overrides
             capture = neutral_mod.set_neutral(capture, max(int(start), 0), how="trim")
@@ -55,14 +66,19 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
         # a Savitzky-Golay filter is set by its window, not a cutoff frequency
         cutoff_option = {"cutoff_hz": cutoff} if filter == "butterworth" else {}
         capture = filtering.filter_noise(capture, method=filter, **cutoff_option)
-    if resample is not None:
-        capture = timing.resample(capture, rate=resample)
+    # the neutral frame is chosen on the capture's own frames (after trimming), then resampling
+    # carries it to the nearest new frame
     if neutral == "auto":
         index, report = neutral_mod.choose_neutral(capture)
         capture = neutral_mod.set_neutral(capture, index, how="auto")
         reports["neutral"] = report.summary()
     elif neutral is not None:
+        if not 0 <= neutral < capture.n_frames:
+            raise OptionError(f"--neutral {neutral}: expected a frame index 0..{capture.n_frames - 1} "
+                              "(0-based, after --trim) or 'auto'")
         capture = neutral_mod.set_neutral(capture, neutral, how="option")
+    if resample is not None:
+        capture = timing.resample(capture, rate=resample)
     if stabilize is not None:
         from ..capture.stabilize import stabilize as stabilize_fn
 

@@ -19,7 +19,12 @@ def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
             from ..errors import OptionError
 
             raise OptionError(f"--units {units} conflicts with {path}'s metersPerUnit ({mesh.units})")
-        if mesh.units is None and units is not None:
+        if mesh.units is None:
+            if units is None:
+                from ..errors import MeshError
+
+                raise MeshError(f"mesh {path}: the layer has no metersPerUnit; say its units with --units "
+                                "(usdface never guesses units for USD input)")
             import dataclasses
 
             mesh = dataclasses.replace(mesh, units=units)

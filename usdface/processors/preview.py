@@ -57,6 +57,11 @@ def preview(path, output, *, frame=None, frames=None, view="front", size=768, co
         raise OptionError(f"--size {size}: expected 64..8192 pixels")
     stage = open_stage(path, what="file")
     times = list(frames) if frames else [frame]
+    if stage.HasAuthoredTimeCodeRange():
+        lo, hi = stage.GetStartTimeCode(), stage.GetEndTimeCode()
+        outside = [t for t in times if t is not None and not lo <= t <= hi]
+        if outside:
+            raise OptionError(f"--frame {outside[0]:g}: outside the layer's time range {lo:g}..{hi:g}")
     scenes = [read_scene_frame(path, time=t, stage=stage) for t in times]
     cell = size if len(scenes) == 1 else max(256, size // min(len(scenes), 4))
     everything = [s.mesh.points for s in scenes] + [scenes[0].rest_points]

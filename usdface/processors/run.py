@@ -13,7 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..errors import OptionError
+from ..errors import OptionError, UsdFaceError
 
 OUTPUT_FILES = ("mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc", "anim.usdc", "shot.usda",
                 "summary.json")
@@ -46,7 +46,8 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         retarget="displacement", mesh_units=None, units=None, rate=None, up_axis=None, stabilize="auto",
         fill_gaps=None, filter=None, cutoff=8.0, trim=None, neutral=None, region_radius_cm=1.0,
         sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error", cache=None,
-        output="points", seeds=None, radius=(3.0, 10.0), max_influences=8) -> dict:
+        output="points", seeds=None, radius=(3.0, 10.0), max_influences=8, resample=None,
+        start_frame=None) -> dict:
     """Run the whole pipeline; returns the summary (also written to OUTDIR/summary.json).
 
     ``cache`` (a :class:`usdface.batch.cache.ContentCache`; default None, no cache) reuses imported
@@ -88,8 +89,13 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         if path is not None and not Path(path).is_file():
             raise OptionError(f"{label} {path}: no such file")
     out = Path(out_dir)
-    if not out.parent.is_dir():
-        raise OptionError(f"-o {out}: folder {out.parent} does not exist")
+    if out.exists() and not out.is_dir():
+        raise OptionError(f"-o {out}: exists and is not a folder")
+    if rbf == "paper" and (polynomial or regularization not in ("auto", 0, 0.0)):
+        raise OptionError("--polynomial and --regularization apply to --rbf interpolate only (paper mode solves nothing)")
+    from .transfer import parse_stiffness
+
+    parse_stiffness(stiffness)  # a bad --stiffness fails now, not after the distances
     files = output_files(output=output, video=video)
     options = run_options(layout=layout, auto=auto, output=output, seeds=seeds, radius=radius,
                           max_influences=max_influences, method=method, backend=backend, rbf=rbf, kernel=kernel,
@@ -99,7 +105,8 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
                           neutral=neutral, region_radius_cm=region_radius_cm, sigma_cm=sigma_cm,
                           threshold=threshold, pin_border=pin_border, components=components)
     prov = run_provenance(mesh, capture, options, layout=layout, stiffness=stiffness)
-    out.mkdir(exist_ok=True)
+    created = [d for d in [out, *out.parents] if not d.exists()]
+    out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     steps: dict = {}
     work = Path(tempfile.mkdtemp(prefix=".usdface-run-", dir=out))
@@ -116,12 +123,13 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
             steps["lift"] = lift(f["tracks.usdc"], f["mesh.usdc"], lifted, layout=layout, neutral=neutral)
             # the lifted capture still holds the head's motion in the image: condition it like any take
             steps["import-capture"] = import_capture(lifted, f["capture.usdc"], stabilize=stabilize,
-                                                     fill_gaps=fill_gaps, filter=filter, cutoff=cutoff, trim=trim)
+                                                     fill_gaps=fill_gaps, filter=filter, cutoff=cutoff, trim=trim,
+                                                     resample=resample, start_frame=start_frame)
         else:
             steps["import-capture"] = import_capture(capture, f["capture.usdc"], units=units, rate=rate,
                                                      up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
                                                      filter=filter, cutoff=cutoff, trim=trim, neutral=neutral,
-                                                     cache=cache)
+                                                     resample=resample, start_frame=start_frame, cache=cache)
         steps["bind"] = bind(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], layout=layout,
                              auto=bool(auto) and not video, retarget=retarget)
         steps["distances"] = distances(f["mesh.usdc"], f["binding.usda"], f["analysis.usdc"], method=method,
@@ -161,8 +169,19 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         f["summary.json"].write_text(text + "\n")
         for name in files:
             os.replace(work / name, out / name)
+    except UsdFaceError as exc:
+        step = next(reversed(steps), None)
+        failed = _next_step(step, video=video, output=output)
+        message = str(exc).replace(str(work) + os.sep, "").replace(str(work), str(out))
+        raise type(exc)(f"{failed} step failed: {message}") from None
     finally:
         shutil.rmtree(work, ignore_errors=True)
+        if not (out / "summary.json").exists():
+            for d in created:  # the run made these folders: leave the disk as it was
+                try:
+                    d.rmdir()
+                except OSError:
+                    break
     summary = json.loads(text)
     b = summary["steps"]["bind"]
     tr = summary["steps"].get("transfer") or summary["steps"]["skel"]
@@ -183,6 +202,14 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
           f"{summary['steps']['skel']['maxInfluences']} influences per vertex"] if "skel" in summary["steps"] else []) \
       + [f"  total {summary['seconds']:.1f} s; files: {', '.join(files)}"]
     return summary
+
+
+def _next_step(done, *, video: bool, output: str) -> str:
+    """The step after ``done`` (the one that failed), for error messages."""
+    order = ["import-mesh"] + (["track", "lift"] if video else []) + ["import-capture", "bind", "distances"]
+    order += (["transfer"] if output in ("points", "both") else []) + (["skel"] if output in ("skel", "both") else [])
+    order.append("shot")
+    return order[0] if done is None else order[min(order.index(done) + 1, len(order) - 1)]
 
 
 def run_options(**options) -> dict:

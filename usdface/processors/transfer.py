@@ -39,6 +39,22 @@ def parse_stiffness(value):
     return data
 
 
+def check_capture_units(capture, binding, mesh, *, capture_path, binding_path) -> None:
+    """The binding converts capture displacements with the unit scale of the capture it was made
+    with; a capture in other units would be scaled wrongly (10x for mm against cm)."""
+    from ..errors import MarkerError
+    from ..units import scale_between
+
+    if capture.units is None or mesh.units is None:
+        return
+    expected = scale_between(capture.units, mesh.units)
+    if abs(expected - binding.unit_scale) > 1e-9 * max(expected, 1.0):
+        raise MarkerError(
+            f"capture {capture_path} is in {capture.units} ({expected:g} {mesh.units} per {capture.units}) but binding "
+            f"{binding_path} was made for a capture converting at {binding.unit_scale:g}; bind this capture again "
+            "(`usdface bind`) or import it in the units of the bound one")
+
+
 def load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path, *, method=None):
     """Read and cross-check the inputs of a transfer: (mesh, capture, binding, distance matrix).
 
@@ -59,6 +75,7 @@ def load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path, *
     if dm.vertex_to_centre.shape[0] != mesh.n_points:
         raise OptionError(f"analysis {analysis_path} has {dm.vertex_to_centre.shape[0]} vertices, mesh {mesh_path} "
                           f"has {mesh.n_points}: they belong to different meshes")
+    check_capture_units(capture, binding, mesh, capture_path=capture_path, binding_path=binding_path)
     return mesh, capture, binding, dm
 
 
@@ -85,8 +102,17 @@ def build_transfer_solver(mesh, binding, dm, *, rbf="interpolate", kernel="gauss
 
     centre_points = np.concatenate([binding.surface_points(mesh.points), mesh.points[dm.constraint_vertices]])
     widths = parse_stiffness(stiffness)
-    if widths is None:  # the default rule on Euclidean marker spacing, whatever the distance method
-        widths = DEFAULT_WIDTH_FACTOR * median_marker_spacing_from_points(binding.surface_points(mesh.points))
+    # the default rule on Euclidean marker spacing, whatever the distance method; a partial
+    # {marker: width} dict keeps that default for every other centre
+    default = DEFAULT_WIDTH_FACTOR * median_marker_spacing_from_points(binding.surface_points(mesh.points))
+    if widths is None:
+        widths = default
+    elif isinstance(widths, dict):
+        from ..rbf.stiffness import resolve_widths
+
+        n_centres = dm.vertex_to_centre.shape[1]
+        widths = resolve_widths(widths, np.full((n_centres, n_centres), default / DEFAULT_WIDTH_FACTOR),
+                                binding.n_markers, marker_names=binding.names)
 
     def make_solver(lam):
         with warnings.catch_warnings():

@@ -216,6 +216,9 @@ class RBFTransfer:
         self.polynomial = bool(polynomial)
         if mode == "paper" and self.polynomial:
             raise OptionError("polynomial=True applies to mode='interpolate' only (Eqs. 1-5 have no polynomial term)")
+        if mode == "paper" and canonical_kernel_name(kernel) not in DECAYING_KERNELS:
+            raise OptionError(f"kernel {kernel!r} does not decay with distance: paper mode (Eqs. 1-5, no solve) "
+                              f"needs one of {', '.join(sorted(DECAYING_KERNELS))}; use mode='interpolate'")
         if mode == "paper" and lam > 0:
             raise OptionError("regularization applies to mode='interpolate' only (paper mode solves no system)")
 

@@ -20,6 +20,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..capture.model import Capture
 from ..errors import InputError, MarkerError
+from ..units import METERS_PER_UNIT
 from .layers import AtomicLayer, open_stage, set_provenance, set_stage_metadata, stage_units
 from .schemas import require_registered
 
@@ -140,18 +141,18 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
             raise InputError(f"capture {path}: {prim.GetPath()} has no points")
         times = [Usd.TimeCode.Default()]
     valid_attr = prim.GetAttribute("primvars:usdface:valid")
-    xformable = UsdGeom.Xformable(prim)
-    cache = UsdGeom.XformCache()
+    # the head motion is the capture's own xformOp:transform on /Capture, not the composed
+    # transform: a binding or shot stage adds a captureToMesh placement in front of it
+    head_op = _head_op(prim)
     pos, valid, head = [], [], []
-    has_motion = xformable.TransformMightBeTimeVarying() or _parent_time_varying(prim)
+    has_motion = head_op is not None and head_op.GetNumTimeSamples() > 0
     for t in times:
         tc = Usd.TimeCode(t) if not isinstance(t, Usd.TimeCode) else t
         pos.append(np.asarray(points_attr.Get(tc), dtype=np.float64))
         v = valid_attr.Get(tc) if valid_attr and valid_attr.HasValue() else None
         valid.append(np.ones(len(names), bool) if v is None else np.asarray(v, dtype=bool))
         if has_motion:
-            cache.SetTime(tc)
-            head.append(_matrix_from_usd(cache.GetLocalToWorldTransform(prim)))
+            head.append(_matrix_from_usd(head_op.Get(tc)))
     positions = np.stack(pos)
     if positions.shape[1] != len(names):
         raise InputError(f"capture {path}: {len(names)} marker names but {positions.shape[1]} points")
@@ -160,20 +161,24 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
     head_motion = np.stack(head) if head else None
     rate = prim.GetAttribute("usdface:markerSet:captureRate").Get() or stage.GetTimeCodesPerSecond()
     start = int(round(times[0])) if not isinstance(times[0], Usd.TimeCode) else 0
-    neutral_time = prim.GetAttribute("usdface:markerSet:neutralTime").Get() or start
+    neutral_value = prim.GetAttribute("usdface:markerSet:neutralTime").Get()
+    neutral_time = start if neutral_value is None else neutral_value
     source = prim.GetAttribute("usdface:markerSet:sourceFile").Get()
     history = json.loads(stage.GetRootLayer().customLayerData.get("usdface", {}).get("captureHistory", "[]"))
-    units = stage_units(stage)
+    # units as the capture recorded them (a composing stage may have other metersPerUnit)
+    source_units = prim.GetAttribute("usdface:markerSet:sourceUnits").Get()
+    units = source_units if source_units in METERS_PER_UNIT else stage_units(stage)
     return Capture(names=names, positions=positions, rate=float(rate), units=units, start_frame=start,
                    neutral_frame=int(round(neutral_time)) - start, source=str(path),
                    head_motion=head_motion, history=tuple(history))
 
 
-def _parent_time_varying(prim: Usd.Prim) -> bool:
-    p = prim.GetParent()
-    while p and not p.IsPseudoRoot():
-        x = UsdGeom.Xformable(p)
-        if x and x.TransformMightBeTimeVarying():
-            return True
-        p = p.GetParent()
-    return False
+def _head_op(prim: Usd.Prim):
+    """The capture's head-motion op: xformOp:transform on the marker set's Xform parent."""
+    parent = prim.GetParent()
+    if not parent or not parent.IsA(UsdGeom.Xformable):
+        return None
+    for op in UsdGeom.Xformable(parent).GetOrderedXformOps():
+        if op.GetOpName() == "xformOp:transform":
+            return op
+    return None

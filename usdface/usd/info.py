@@ -120,7 +120,7 @@ def format_description(d: dict) -> list[str]:
             lines.append(f"      region {name}: role {r['role']}, {r['vertices']} vertices")
         if "binding" in p:
             b = p["binding"]
-            lines.append(f"      binding: {b['markers']} markers ({b['method']}, retarget {b['retarget']}), residual median "
+            lines.append(f"      binding: {b['markers']} markers ({b['method']}, retarget {b['retarget']}), surface residual median "
                          f"{b['residualMedian']:.3g} max {b['residualMax']:.3g}")
         for name, m in p.get("distanceMatrices", {}).items():
             lines.append(f"      distance matrix {name}: {m['method']}/{m['backend']}, {m['markers']} markers")

@@ -22,7 +22,11 @@ from ..units import meters_per_unit, unit_name
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 
 
-def check_output_path(path: str | os.PathLike, *, suffixes=USD_SUFFIXES, option: str = "-o") -> Path:
+#: usdface writes plain layers; .usdz packages are read-only archives (package them afterwards)
+OUTPUT_SUFFIXES = (".usd", ".usda", ".usdc")
+
+
+def check_output_path(path: str | os.PathLike, *, suffixes=OUTPUT_SUFFIXES, option: str = "-o") -> Path:
     """Validate an output path before any work: existing folder, known suffix."""
     p = Path(path)
     if p.suffix.lower() not in suffixes:
