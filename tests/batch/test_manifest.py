@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import os
 
+from pathlib import Path
+
 import pytest
 
 from usdface.batch.manifest import key_line, load_manifest
@@ -88,16 +90,19 @@ def test_outputs_must_differ(tmp_path, make_manifest):
         load_manifest(p)
 
 
-def test_video_capture_accepted_and_reported_unsupported(tmp_path, make_manifest, sample_assets):
+def test_video_capture_is_tracked_lifted_and_transferred(tmp_path, sample_assets):
     from usdface.batch.runner import run_batch
 
-    video = tmp_path / "take01.mp4"
-    video.write_bytes(b"\0" * 16)
+    v = sample_assets / "video"
     p = tmp_path / "video.toml"
-    p.write_text(f'[[shots]]\nmesh = "{sample_assets}/meshes/makehuman_hm08_face_cm.obj"\nauto = true\n'
-                 f'capture = "{video}"\noutput = "out/{{capture}}"\nprocessors = ["track", "run"]\n')
+    p.write_text(f'[[shots]]\nmesh = "{sample_assets}/meshes/makehuman_hm08_face_cm.obj"\n'
+                 f'layout = "{sample_assets}/layouts/makehuman_hm08_face.layout.json"\n'
+                 f'capture = "{v}/animface_dots.mp4"\nseeds = "{v}/animface_dots.seeds.json"\n'
+                 f'output = "out/{{capture}}"\n')
     m = load_manifest(p)
     assert m.shots[0].is_video
     s = run_batch(m, workers=0, quiet=True)
-    assert s["shots"][0]["status"] == "unsupported" and "is a video" in s["shots"][0]["error"]
-    assert s["_exit"] == 1
+    assert s["shots"][0]["status"] == "ok", s["shots"][0]["error"]
+    out = Path(s["shots"][0]["output"])
+    assert (out / "tracks.usdc").is_file() and (out / "anim.usdc").is_file()
+    assert s["_exit"] == 0

@@ -46,7 +46,7 @@ PROCESSORS = ("track", "run", "check")
 BATCH_KEYS = {"cache": (str, bool), "summary": (str,), "workers": (int,), "scheduler": (str,)}
 #: `usdface run` options a manifest does not take (the run pipeline does not use them, or they
 #: are the batch's business)
-_EXCLUDED = {"help", "json", "verbose", "quiet", "start_frame", "resample", "no_stabilize", "output"}
+_EXCLUDED = {"help", "json", "verbose", "quiet", "no_stabilize", "output"}
 _SHOT_ONLY = {"mesh", "capture", "output", "processors"}
 
 
@@ -243,6 +243,11 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                     if not st.is_file():
                         missing.append(f"{label}: stiffness {st}")
                     options["stiffness"] = str(st)
+                if options.get("seeds"):  # a video's seed points, relative to the manifest like the rest
+                    sd = _resolve(options["seeds"], base)
+                    if not sd.is_file():
+                        missing.append(f"{label}: seeds {sd}")
+                    options["seeds"] = str(sd)
                 name = f"{names['mesh']}/{names['capture']}"
                 shots.append(Shot(name=name, mesh=mesh, capture=capture, output=output, options=options,
                                   processors=tuple(p for p in PROCESSORS if p in processors), layout=layout,
@@ -335,7 +340,9 @@ def _parse_options(merged, allowed, mesh, capture, layout, output, where, i, ent
                 fill_gaps=args.fill_gaps, filter=args.filter, cutoff=args.cutoff,
                 trim=list(args.trim) if args.trim else None, neutral=neutral, region_radius_cm=args.region_radius,
                 sigma_cm=args.sigma, threshold=args.threshold, pin_border=args.pin_border,
-                components=args.components)
+                components=args.components, output=args.output_kind, seeds=args.seeds,
+                radius=list(args.radius), max_influences=args.max_influences, resample=args.resample,
+                start_frame=args.start_frame)
 
 
 def _culprit(message: str, merged: dict) -> str | None:

@@ -44,9 +44,7 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
                 from .cache import ContentCache
 
                 cache = ContentCache(cache_root)
-            capture = shot.capture
-            if shot.is_video:
-                capture = _track(shot)
+            capture = shot.capture  # `run` tracks and lifts video captures itself
             from ..processors.run import run
 
             summary = run(shot.mesh, capture, shot.output, cache=cache, **shot.options)
@@ -99,26 +97,6 @@ class single_threaded:
         return False
 
 
-class UnsupportedError(UsdFaceError):
-    unsupported = True
-
-
-def video_unsupported_reason(capture: str) -> str:
-    """Why a video capture cannot be run yet (checked at run time: `usdface track` is arriving)."""
-    import importlib.util
-
-    name = Path(capture).name
-    if importlib.util.find_spec("usdface.processors.track") is None:
-        return (f"capture {name} is a video: it needs `usdface track`, which this usdface installation "
-                "does not have yet")
-    return (f"capture {name} is a video: `usdface track` is installed but writes 2D tracks, and the batch "
-            "does not yet chain track -> 3D capture -> run; track it by hand and give the capture layer")
-
-
-def _track(shot: Shot) -> str:
-    raise UnsupportedError(video_unsupported_reason(shot.capture))
-
-
 def _worker_name() -> str:
     try:
         from distributed import get_worker
@@ -148,7 +126,7 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     except (OSError, ValueError):
         return False, "summary.json unreadable"
     opts = {k: v for k, v in shot.options.items()}
-    capture = shot.capture if not shot.is_video else str(out / "tracked.usdc")
+    capture = shot.capture
     if not Path(capture).is_file():
         return False, "capture missing"
     expected = run_provenance(shot.mesh, capture, run_options(**opts), layout=opts.get("layout"),
@@ -226,11 +204,6 @@ def run_batch(manifest: Manifest, *, workers: int | None = None, scheduler: str 
                                       "capture": shot.capture, "status": "skipped", "seconds": 0.0,
                                       "error": None, "reason": "outputs current (resume)", "cache": {}}
                 continue
-        if shot.is_video:
-            records[shot.name] = {"name": shot.name, "output": shot.output, "mesh": shot.mesh,
-                                  "capture": shot.capture, "status": "unsupported", "seconds": 0.0,
-                                  "error": video_unsupported_reason(shot.capture), "cache": {}}
-            continue
         todo.append(shot)
     for shot in todo:
         Path(shot.output).parent.mkdir(parents=True, exist_ok=True)
