@@ -157,7 +157,11 @@ def render_marker_video(positions: np.ndarray, names, photo: np.ndarray, photo_l
         Random seed (noise, textures).
     """
     cv2 = _cv2()
-    from ..scan.warp import ThinPlateSpline
+    from scipy.interpolate import RBFInterpolator
+
+    def thin_plate(src, dst, smoothing):
+        """Thin-plate spline with an affine term, mapping src (K, 2) onto dst (K, 2)."""
+        return RBFInterpolator(src, dst, kernel="thin_plate_spline", degree=1, smoothing=smoothing)
 
     pos = np.asarray(positions, dtype=np.float64)
     names = tuple(names)
@@ -198,8 +202,7 @@ def render_marker_video(positions: np.ndarray, names, photo: np.ndarray, photo_l
     known = [i for i, n in enumerate(names) if n in photo_landmarks]
     if len(known) < 6:
         raise InputError(f"render_marker_video: {len(known)} photo landmarks match the markers; need 6")
-    to_photo = ThinPlateSpline(rest[known], np.array([photo_landmarks[names[i]] for i in known], float),
-                               smoothing=50.0)
+    to_photo = thin_plate(rest[known], np.array([photo_landmarks[names[i]] for i in known], float), 50.0)
     photo_pts = to_photo(rest)
 
     # static textures: moles (skin-coloured dots) at fixed face positions, the hand's skin
@@ -225,7 +228,7 @@ def render_marker_video(positions: np.ndarray, names, photo: np.ndarray, photo_l
         q_all = at(f + sub)  # (5, M, 2)
         q = q_all[2]
         # -- warped photo (backward map output -> photo by a TPS through the markers) -----------
-        warp = ThinPlateSpline(q, photo_pts, smoothing=5.0)
+        warp = thin_plate(q, photo_pts, 5.0)
         src = warp(grid).astype(np.float32).reshape(gy.shape + (2,))
         mapx = cv2.resize(src[..., 0], (gx.shape[1] * grid_step, gx.shape[0] * grid_step),
                           interpolation=cv2.INTER_LINEAR)[:h, :w]

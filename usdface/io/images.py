@@ -1,0 +1,249 @@
+"""Read and write images and float maps (disparity, depth).
+
+- 8/16-bit images (PNG, JPEG, TIFF, BMP...) go through OpenCV; arrays come back in OpenCV's
+  channel order (BGR) unless ``rgb=True``.
+- Float maps (disparity, depth) are written as OpenEXR (``.exr``, float32, one channel ``Y``,
+  NaN kept) through OpenImageIO (``pip install OpenImageIO``), as 32-bit float TIFF (``.tif``,
+  OpenCV), as PFM (``.pfm``, written here; NaN kept) or as NumPy ``.npy``; and read back from those
+  and from ``.npz`` (first array, or ``key``).
+
+Every write is atomic: a temporary file in the destination folder, then ``os.replace``.
+"""
+from __future__ import annotations
+
+import os
+import secrets
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FormatError, InputError, OptionError, UsdFaceError
+
+__all__ = ["IMAGE_SUFFIXES", "FLOAT_MAP_SUFFIXES", "read_image", "write_image", "read_float_map",
+           "write_float_map", "check_image_output"]
+
+#: suffixes :func:`read_image` / :func:`write_image` handle (8- or 16-bit)
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".pgm", ".webp")
+#: suffixes of :func:`write_float_map`
+FLOAT_MAP_SUFFIXES = (".exr", ".tif", ".tiff", ".pfm", ".npy")
+
+
+def _cv2():
+    import cv2
+
+    return cv2
+
+
+def _oiio():
+    try:
+        import OpenImageIO as oiio
+    except ImportError as exc:
+        raise UsdFaceError("EXR files need OpenImageIO: pip install OpenImageIO "
+                           "(or write the map as .tif, .pfm or .npy)") from exc
+    return oiio
+
+
+def _tmp_for(path: Path) -> Path:
+    return path.with_name(f".{path.stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{path.suffix}")
+
+
+def _replace(tmp: Path, path: Path) -> None:
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(tmp, 0o666 & ~mask)
+    os.replace(tmp, path)
+
+
+def check_image_output(path, *, suffixes=IMAGE_SUFFIXES, option: str = "-o") -> Path:
+    """Validate an output image path before any work (suffix, existing writable folder)."""
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise OptionError(f"{option} {p}: expected a file ending in {', '.join(suffixes)}")
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise OptionError(f"{option} {p}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise OptionError(f"{option} {p}: folder {folder} is not writable")
+    return p
+
+
+def read_image(path, *, gray: bool = False, rgb: bool = False) -> np.ndarray:
+    """Read an image file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    gray : bool
+        Convert to one channel.
+    rgb : bool
+        Return RGB channel order instead of OpenCV's BGR.
+
+    Returns
+    -------
+    ndarray, shape (H, W) or (H, W, 3), uint8 or uint16
+        Alpha channels are dropped.
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file.
+    """
+    cv2 = _cv2()
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"image {p}: no such file")
+    data = np.fromfile(str(p), dtype=np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if img is None:
+        raise InputError(f"image {p}: cannot be read as an image (expected {', '.join(IMAGE_SUFFIXES)})")
+    if img.ndim == 3 and img.shape[2] == 4:
+        img = img[..., :3]
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[..., 0]
+    if gray and img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    elif rgb and img.ndim == 3:
+        img = img[..., ::-1].copy()
+    return img
+
+
+def write_image(path, image: np.ndarray, *, rgb: bool = False) -> Path:
+    """Write an 8- or 16-bit image atomically (format from the suffix).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    image : ndarray, shape (H, W) or (H, W, 3), uint8 or uint16
+        BGR unless ``rgb=True``.
+    """
+    cv2 = _cv2()
+    p = check_image_output(path)
+    img = np.asarray(image)
+    if img.dtype not in (np.uint8, np.uint16):
+        raise OptionError(f"write_image {p}: expected uint8 or uint16 pixels; got {img.dtype}")
+    if rgb and img.ndim == 3:
+        img = img[..., ::-1]
+    ok, buf = cv2.imencode(p.suffix.lower(), np.ascontiguousarray(img))
+    if not ok:
+        raise InputError(f"could not encode {p}")
+    tmp = _tmp_for(p)
+    try:
+        buf.tofile(str(tmp))
+        _replace(tmp, p)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return p
+
+
+def _write_pfm(path: Path, a: np.ndarray) -> None:
+    h, w = a.shape
+    with open(path, "wb") as f:
+        f.write(f"Pf\n{w} {h}\n-1.0\n".encode("ascii"))  # negative scale: little-endian
+        f.write(np.ascontiguousarray(a[::-1], dtype="<f4").tobytes())  # PFM rows go bottom-up
+
+
+def _read_pfm(path: Path) -> np.ndarray:
+    with open(path, "rb") as f:
+        kind = f.readline().strip()
+        if kind not in (b"Pf", b"PF"):
+            raise FormatError(f"float map {path}: not a PFM file")
+        dims = f.readline().split()
+        scale = float(f.readline())
+        w, h = int(dims[0]), int(dims[1])
+        ch = 3 if kind == b"PF" else 1
+        a = np.frombuffer(f.read(), dtype="<f4" if scale < 0 else ">f4")
+    if a.size != w * h * ch:
+        raise FormatError(f"float map {path}: expected {w}x{h}x{ch} floats, found {a.size}")
+    a = a.reshape(h, w, ch)[::-1]
+    return np.ascontiguousarray(a[..., 0] if ch == 1 else a, dtype=np.float32)
+
+
+def write_float_map(path, values: np.ndarray, *, option: str = "--disparity") -> Path:
+    """Write a float map (H, W) as float32, atomically; NaN marks unknown pixels.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.exr`` (OpenImageIO), ``.tif``/``.tiff`` (32-bit float), ``.pfm`` or ``.npy``.
+    values : ndarray, shape (H, W), float
+    """
+    p = check_image_output(path, suffixes=FLOAT_MAP_SUFFIXES, option=option)
+    a = np.asarray(values, dtype=np.float32)
+    if a.ndim != 2:
+        raise OptionError(f"{option} {p}: expected a 2-D map; got shape {a.shape}")
+    tmp = _tmp_for(p)
+    suffix = p.suffix.lower()
+    try:
+        if suffix == ".exr":
+            oiio = _oiio()
+            spec = oiio.ImageSpec(a.shape[1], a.shape[0], 1, oiio.FLOAT)
+            spec.channelnames = ("Y",)
+            spec.attribute("compression", "zip")
+            out = oiio.ImageOutput.create(str(tmp))
+            if out is None or not out.open(str(tmp), spec):
+                raise InputError(f"cannot write {p}: {oiio.geterror()}")
+            ok = out.write_image(np.ascontiguousarray(a.reshape(a.shape[0], a.shape[1], 1)))
+            out.close()
+            if not ok:
+                raise InputError(f"cannot write {p}: {oiio.geterror()}")
+        elif suffix in (".tif", ".tiff"):
+            ok, buf = _cv2().imencode(suffix, np.ascontiguousarray(a))
+            if not ok:
+                raise InputError(f"could not encode {p}")
+            buf.tofile(str(tmp))
+        elif suffix == ".pfm":
+            _write_pfm(tmp, a)
+        else:
+            with open(tmp, "wb") as f:
+                np.save(f, a)
+        _replace(tmp, p)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return p
+
+
+def read_float_map(path, *, key: str | None = None) -> np.ndarray:
+    """Read a float map written by :func:`write_float_map` (or a float image, or an .npz array).
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"float map {p}: no such file")
+    suffix = p.suffix.lower()
+    if suffix == ".exr":
+        oiio = _oiio()
+        inp = oiio.ImageInput.open(str(p))
+        if inp is None:
+            raise InputError(f"float map {p}: cannot be read ({oiio.geterror()})")
+        a = inp.read_image(oiio.FLOAT)
+        inp.close()
+        a = np.asarray(a, dtype=np.float32)
+        return a[..., 0] if a.ndim == 3 else a
+    if suffix == ".pfm":
+        return _read_pfm(p)
+    if suffix == ".npy":
+        a = np.load(p, allow_pickle=False)
+    elif suffix == ".npz":
+        with np.load(p, allow_pickle=False) as z:
+            names = list(z.keys())
+            if not names:
+                raise FormatError(f"float map {p}: the archive is empty")
+            if key is not None and key not in names:
+                raise FormatError(f"float map {p}: no array {key!r}; it has {', '.join(names)}")
+            a = z[key or names[0]]
+    else:
+        cv2 = _cv2()
+        a = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        if a is None:
+            raise InputError(f"float map {p}: cannot be read")
+    a = np.asarray(a, dtype=np.float32)
+    if a.ndim == 3:
+        a = a[..., 0]
+    if a.ndim != 2:
+        raise FormatError(f"float map {p}: expected a 2-D array; got shape {a.shape}")
+    return a
