@@ -345,6 +345,7 @@ PLUGIN_COMMANDS = (
     "usdface.processors.track",
     "usdface.processors.lift",
     "usdface.processors.skel",
+    "usdface.processors.acquisition",
 )
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ComputeError, InputError, MeshError, OptionError, UsdFaceError, list_names
+from ..errors import ComputeError, InputError, MeshError, OptionError, list_names
 
 log = logging.getLogger("usdface")
 
@@ -247,33 +247,11 @@ def _annotation_for(image: Path, points_dir: Path | None):
                      f"{image.stem}.landmarks.json, {image.stem}.json in {folder})")
 
 
-def augment_sample(image, points, n: int, *, seed: int = 0, rotation: float = 8.0, scale: float = 0.1,
-                   shift: float = 0.05):
-    """``n`` jittered copies of one annotated image (similarity, brightness, contrast, noise)."""
-    import cv2
-
-    rng = np.random.default_rng(seed)
-    h, w = image.shape[:2]
-    pts = np.asarray(points, dtype=np.float64)
-    c = pts.mean(axis=0)
-    out_i, out_p = [], []
-    for _ in range(n):
-        M = cv2.getRotationMatrix2D((float(c[0]), float(c[1])), rng.uniform(-rotation, rotation),
-                                    1.0 + rng.uniform(-scale, scale))
-        M[:, 2] += rng.uniform(-shift, shift, 2) * np.array([w, h])
-        im = cv2.warpAffine(image, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-        im = im.astype(np.float32) * rng.uniform(0.75, 1.25) + rng.uniform(-25, 25)
-        im += rng.normal(0, 3.0, im.shape)
-        out_i.append(np.clip(im, 0, 255).astype(np.uint8))
-        out_p.append(pts @ M[:, :2].T + M[:, 2])
-    return out_i, np.asarray(out_p)
-
-
 def landmarks_train(images, output, *, landmarks=None, points_dir=None, augment=None, model_size: float = 60.0,
                     seed: int = 0) -> dict:
     """Train an AAM from annotated images (point files beside them) or one image + a landmarks file."""
     from ..io.images import read_image
-    from ..scan.aam import train_aam
+    from ..scan.aam import augment_sample, train_aam
     from ..scan.detect import largest_face_box
     from ..scan.landmarks import FACE_LANDMARKS, read_landmarks
 
@@ -364,10 +342,9 @@ def lift_image_landmarks(image_points: dict, scan_points, scan_triangles, camera
     uv = np.array([image_points[n] for n in names], dtype=np.float64).reshape(-1, 2)
     rc = camera.get("rectification")
     if rc:
-        import cv2
+        from ..scan.calibration import rectify_image_points
 
-        uv = cv2.undistortPoints(uv.reshape(-1, 1, 2), np.array(rc["K1"]), np.array(rc["D1"]),
-                                 R=np.array(rc["R1"]), P=np.array(rc["P1"])).reshape(-1, 2)
+        uv = rectify_image_points(uv, rc["K1"], rc["D1"], rc["R1"], rc["P1"])
     outside = [f"{n} ({u:.1f}, {v:.1f})" for n, (u, v) in zip(names, uv)
                if not (-0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5)]
     if outside:
@@ -414,7 +391,8 @@ def _layout_sidecar(path: Path) -> Path:
 
 
 def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, layout=None, layout_output=None,
-             image=None, aam=None, iterations: int = 12, border: bool = False, hole_rings: int = 1) -> dict:
+             image=None, aam=None, iterations: int = 20, border: bool = False, field: int = 0,
+             hole_rings: int = 1) -> dict:
     """Warp the generic face onto a scan (similarity, thin-plate RBF, closest-point projection).
 
     Parameters
@@ -439,6 +417,9 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
         Without ``landmarks``: detect the face in ``image`` and fit the AAM ``aam``.
     border : bool
         Also match the generic's outer border to the scan's border (scans cropped like the generic).
+    field : int
+        Iterations of the smooth-field stage (a global RBF displacement fitted to the closest-point
+        constraints) between the thin-plate warp and the projection; 0 skips it.
     """
     from ..mesh.layout import Layout, LayoutMarker, read_layout, write_layout
     from ..scan.landmarks import read_landmarks
@@ -520,9 +501,11 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
                          f"{list_names(far)}")
     GL = glay.positions(mesh, names)
     reg = GenericRegistration(mesh, regions, GL, hole_rings=hole_rings)
-    res = reg.register(S, scan_tris, SL, iterations=iterations, border_weight=1.0 if border else 0.0, locator=loc)
+    res = reg.register(S, scan_tris, SL, iterations=iterations, border_weight=1.0 if border else 0.0,
+                       field_iterations=field, locator=loc)
     registered = mesh.with_points(res.points)
-    prov = provenance("register", options={"iterations": iterations, "border": border, "holeRings": hole_rings,
+    prov = provenance("register", options={"iterations": iterations, "border": border, "field": field,
+                                           "holeRings": hole_rings,
                                            "landmarks": names},
                       inputs={"generic": generic, "scan": scan, "landmarks": landmarks,
                               "genericLandmarks": generic_landmarks, "layout": layout})
@@ -653,12 +636,15 @@ def register_cli(subparsers) -> None:
     p.add_argument("--layout-output", help="where the carried layout goes (default OUTPUT_STEM.layout.json)")
     p.add_argument("--image", help="without --landmarks: the first stereo image to detect the landmarks on")
     p.add_argument("--aam", help="without --landmarks: AAM model for --image")
-    p.add_argument("--iterations", type=int, default=12, help="closest-point iterations (default 12)")
+    p.add_argument("--iterations", type=int, default=20, help="closest-point iterations (default 20)")
     p.add_argument("--border", action="store_true", help="also match the generic's outer border to the scan's "
                                                          "(for scans cropped like the generic)")
+    p.add_argument("--field", type=int, default=0, metavar="N",
+                   help="iterations of the smooth-field stage before the projection (default 0; 8 with --border "
+                        "for scans cropped like the generic)")
     p.add_argument("-o", "--output", required=True, help="registered mesh layer to write (.usdc)")
     add_common_options(p)
     p.set_defaults(func=lambda a: register(a.generic, a.scan, a.output, landmarks=a.landmarks,
                                            generic_landmarks=a.generic_landmarks, layout=a.layout,
                                            layout_output=a.layout_output, image=a.image, aam=a.aam,
-                                           iterations=a.iterations, border=a.border))
+                                           iterations=a.iterations, border=a.border, field=a.field))

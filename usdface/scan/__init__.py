@@ -1,0 +1,24 @@
+"""Face acquisition (seed 001, sections 2-4): stereo depth, face and feature detection, and the
+registration of a generic face onto a scan.
+
+- :mod:`~usdface.scan.calibration`: calibration files, rectification;
+- :mod:`~usdface.scan.stereo`: disparity maps (SGBM + WLS, graph cuts, plain SGBM), bad-pixel rate;
+- :mod:`~usdface.scan.graphcut`: the KZ1-style energy and alpha-expansion;
+- :mod:`~usdface.scan.surface`: depth map -> points -> scan mesh;
+- :mod:`~usdface.scan.detect`: Haar face, eye and mouth detection;
+- :mod:`~usdface.scan.aam`: active appearance model (train, fit);
+- :mod:`~usdface.scan.landmarks`: landmark files, the standard 20 landmarks;
+- :mod:`~usdface.scan.warp`, :mod:`~usdface.scan.register`: thin-plate RBF warp, registration;
+- :mod:`~usdface.scan.render`, :mod:`~usdface.scan.synthetic`: renderer and synthetic test data
+  with exact ground truth.
+
+cv2 is imported by these modules (and io/, tracking/, preview/) only.
+"""
+from .calibration import StereoCalibration, read_calibration, rectify_pair
+from .landmarks import FACE_LANDMARKS, Landmarks, read_landmarks, write_landmarks
+from .register import GenericRegistration, RegistrationResult, register_generic, similarity_fit
+from .stereo import METHODS, DisparityResult, bad_pixel_rate, compute_disparity
+
+__all__ = ["StereoCalibration", "read_calibration", "rectify_pair", "FACE_LANDMARKS", "Landmarks",
+           "read_landmarks", "write_landmarks", "GenericRegistration", "RegistrationResult", "register_generic",
+           "similarity_fit", "METHODS", "DisparityResult", "bad_pixel_rate", "compute_disparity"]
