@@ -190,7 +190,8 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         f"{summary['vertices']} vertices, {summary['markers']} markers)",
         f"  capture: {cap['markers']} markers, {cap['invalidSamples']} invalid samples, "
         f"stabilised: {'yes' if cap['stabilized'] else 'no'}",
-        f"  binding: {b['method']}, residual median {b['residualMedian']:.3f} max {b['residualMax']:.3f} {b['units']}",
+        f"  binding: {b['method']}, {'fit ' if b['method'] == 'layout' else ''}residual median "
+        f"{b['residualMedian']:.3f} max {b['residualMax']:.3f} {b['units']}",
         f"  distances: {method}{'/' + backend if method != 'euclidean' else ''} in "
         f"{summary['steps']['distances']['seconds']:.2f} s",
         f"  transfer: {tr['mode']} {tr['kernel']}, {tr['seconds']:.2f} s"
