@@ -35,6 +35,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from usdface.rbf import RBFTransfer  # noqa: E402
+from usdface.rbf.stiffness import DEFAULT_WIDTH_FACTOR  # noqa: E402
 
 
 # ------------------------------------------------------------------------------------------ data
@@ -212,7 +213,7 @@ def main(argv=None) -> None:
     rbf = RBFTransfer(D_vc, D_cc).fit()
     t_fit = time.perf_counter() - t0
     width = float(rbf.widths[0])
-    print(f"\nusdface RBFTransfer (interpolate, gaussian, width {width:.3f} cm = 1.5 x median marker spacing, "
+    print(f"\nusdface RBFTransfer (interpolate, gaussian, width {width:.3f} cm = {DEFAULT_WIDTH_FACTOR:g} x median marker spacing, "
           f"cond {rbf.condition_number:.3g})")
     print(f"  set-up + fit (SVD, LU, B = Phi_vc A^-1):{t_fit * 1e3:8.1f} ms")
 
