@@ -36,6 +36,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import OptionError, ResourceError
+from ..fileutil import file_digest, fsync_dir
 
 log = logging.getLogger("usdface")
 
@@ -178,7 +179,7 @@ class ContentCache:
         for name, info in meta.get("files", {}).items():
             f = path / name
             try:
-                if f.stat().st_size != info["size"] or _sha256(f) != info["sha256"]:
+                if f.stat().st_size != info["size"] or file_digest(f) != info["sha256"]:
                     return False
             except (OSError, KeyError):
                 return False
@@ -242,7 +243,7 @@ class ContentCache:
                     os.fsync(fo.fileno())
                 listing[name] = dst
             record = dict(meta)
-            record["files"] = {n: {"size": p.stat().st_size, "sha256": _sha256(p)} for n, p in listing.items()}
+            record["files"] = {n: {"size": p.stat().st_size, "sha256": file_digest(p)} for n, p in listing.items()}
             record["kind"] = kind
             record["key"] = key
             record["usdfaceVersion"] = __version__
@@ -259,7 +260,7 @@ class ContentCache:
                     shutil.rmtree(tmp, ignore_errors=True)
                     return self.get(kind, key, verify=False, count=False)
                 raise
-            _fsync_dir(final.parent)
+            fsync_dir(final.parent)
         except OSError as exc:
             shutil.rmtree(tmp, ignore_errors=True)
             if exc.errno in _DISK_FULL:
@@ -348,27 +349,6 @@ def _in_dask_worker() -> bool:
         return True
     except ValueError:
         return False
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def _fsync_dir(path: Path) -> None:
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def _mb(n: int) -> str:

@@ -7,7 +7,6 @@ destination in one ``os.replace``. A failure leaves the destination as it was.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import secrets
@@ -16,6 +15,7 @@ from pathlib import Path
 from pxr import Sdf, Usd, UsdGeom
 
 from .. import __version__
+from ..fileutil import file_digest, fsync_dir, fsync_file  # noqa: F401  (file_digest re-exported)
 from ..errors import InputError, OptionError
 from ..units import meters_per_unit, unit_name
 
@@ -67,9 +67,9 @@ class AtomicLayer:
             if exc_type is None:
                 if not layer.Save():
                     raise InputError(f"could not write {self.tmp_path}")
-                _fsync(self.tmp_path)
+                fsync_file(self.tmp_path)
                 os.replace(self.tmp_path, self.path)
-                _fsync_dir(self.path.parent)
+                fsync_dir(self.path.parent)
                 mask = os.umask(0)
                 os.umask(mask)
                 os.chmod(self.path, 0o666 & ~mask)  # temp files come out 0600
@@ -79,27 +79,6 @@ class AtomicLayer:
             if self.tmp_path.exists():
                 self.tmp_path.unlink()
         return False
-
-
-def _fsync(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _fsync_dir(path: Path) -> None:
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def set_stage_metadata(stage: Usd.Stage, *, units: str | None, default_prim: str,
@@ -124,15 +103,6 @@ def stage_units(stage: Usd.Stage) -> str | None:
     if not stage.HasAuthoredMetadata(UsdGeom.Tokens.metersPerUnit):
         return None
     return unit_name(UsdGeom.GetStageMetersPerUnit(stage))
-
-
-def file_digest(path: str | os.PathLike) -> str:
-    """sha256 of a file's bytes (for provenance and caching)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.PathLike | None]) -> dict:
