@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..usd.layers import check_output_path, open_stage, provenance
+from ..usd.layers import check_output_path, provenance
 
 
 def bind(mesh_path, capture_path, output, *, layout=None, auto=False, retarget="displacement") -> dict:

@@ -6,11 +6,10 @@ Both layers are ``over``s on the mesh prim; a shot stage composes them over the 
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+from pxr import Sdf, Usd, UsdGeom, Vt
 
 from ..errors import InputError
 from .layers import AtomicLayer, open_stage, relative_asset_path, set_provenance, set_stage_metadata

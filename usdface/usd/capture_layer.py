@@ -163,7 +163,6 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
     start = int(round(times[0])) if not isinstance(times[0], Usd.TimeCode) else 0
     neutral_value = prim.GetAttribute("usdface:markerSet:neutralTime").Get()
     neutral_time = start if neutral_value is None else neutral_value
-    source = prim.GetAttribute("usdface:markerSet:sourceFile").Get()
     history = json.loads(stage.GetRootLayer().customLayerData.get("usdface", {}).get("captureHistory", "[]"))
     # units as the capture recorded them (a composing stage may have other metersPerUnit)
     source_units = prim.GetAttribute("usdface:markerSet:sourceUnits").Get()

@@ -12,7 +12,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..errors import InputError, MeshError
 from ..mesh.model import Binding, FaceMesh, Region
-from .capture_layer import MARKERS_PRIM, _matrix_from_usd, _matrix_to_usd, find_marker_set
+from .capture_layer import _matrix_from_usd, _matrix_to_usd, find_marker_set
 from .layers import AtomicLayer, open_stage, relative_asset_path, set_provenance, set_stage_metadata, stage_units
 from .schemas import require_registered
 
