@@ -102,6 +102,28 @@ def read_distance_matrix(path, *, method: str | None = None, stage: Usd.Stage | 
                           hybrid_weight=np.asarray(w.Get(), dtype=np.float32) if w and w.HasValue() else None)
 
 
+def prefetch(iterable):
+    """Iterate ``iterable`` one item ahead in a worker thread.
+
+    The transfer's chunks are numpy matrix products (which release the GIL): computing the next
+    chunk while USD writes the current one overlaps the two instead of adding them. Items must
+    not share buffers (RBFTransfer.iter_chunks with reuse_buffer=False, its default). An
+    exception in the producer is raised here, in the consumer.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    it = iter(iterable)
+    done = object()
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        pending = pool.submit(next, it, done)
+        while True:
+            item = pending.result()
+            if item is done:
+                return
+            pending = pool.submit(next, it, done)
+            yield item
+
+
 def frame_extents(points: np.ndarray) -> np.ndarray:
     """(F, 2, 3) per-frame bounding boxes of (F, N, 3) points.
 
@@ -153,7 +175,7 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
         extent_attr = mesh.CreateExtentAttr()
         layer = stage.GetRootLayer()
         written = 0
-        for frames, disp in chunks:
+        for frames, disp in prefetch(chunks):
             pts = disp + rest[None]
             extents = frame_extents(pts)
             # (no Sdf.ChangeBlock here: with large arrays it made the sets ~2x slower)
