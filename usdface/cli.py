@@ -345,6 +345,7 @@ PLUGIN_COMMANDS = (
     "usdface.processors.lift",
     "usdface.processors.skel",
     "usdface.processors.acquisition",
+    "usdface.processors.tissue",
 )
 
 

@@ -1,0 +1,141 @@
+"""Muscle rig layers, simulated animation layers, and the muscles / simulate / fit-muscles commands."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import usdface.cli as cli
+from usdface.errors import InputError
+from usdface.usd.muscle_layer import read_animation_points, read_contractions, read_rig_layer, write_rig_layer
+
+
+@pytest.fixture
+def tissue_cli(monkeypatch):
+    """The usdface command with the tissue subcommands registered (as the lead wires them)."""
+    monkeypatch.setattr(cli, "PLUGIN_COMMANDS", ("usdface.processors.tissue",))
+
+    def run(*argv):
+        return cli.main([str(a) for a in argv])
+    return run
+
+
+@pytest.fixture(scope="module")
+def mesh_layer(tmp_path_factory, sample_assets):
+    out = tmp_path_factory.mktemp("tissue") / "face.usdc"
+    assert cli.main(["import-mesh", str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj"), "-o", str(out),
+                     "-q"]) == 0
+    return out
+
+
+def test_rig_layer_round_trip(face, mesh_layer, tmp_path):
+    from pxr import Usd, UsdGeom
+
+    from usdface.usd.layers import provenance
+    from usdface.usd.validation import check_layer
+
+    path = tmp_path / "rig.usda"
+    write_rig_layer(path, face.rig, mesh_path=mesh_layer, prov=provenance("muscles", options={}, inputs={}))
+    rig = read_rig_layer(path, units="cm")
+    assert rig.names == face.rig.names
+    for a, b in zip(rig.muscles, face.rig.muscles):
+        assert a.type == b.type and a.max_force == b.max_force
+        assert a.inner_radius == pytest.approx(b.inner_radius) and a.outer_radius == pytest.approx(b.outer_radius)
+        for v in ("origin", "insertion", "centre", "semi_axes"):
+            va, vb = getattr(a, v), getattr(b, v)
+            assert (va is None and vb is None) or np.allclose(va, vb)
+    assert np.allclose(rig.jaw_pivot, face.rig.jaw_pivot) and rig.jaw_max_angle == face.rig.jaw_max_angle
+    assert rig.landmarks["mouthCorner_L"] == pytest.approx(face.rig.landmarks["mouthCorner_L"], abs=1e-5)
+    stage = Usd.Stage.Open(str(path))
+    prim = stage.GetPrimAtPath("/Face/Muscles/zygomaticMajor_L")
+    assert prim.IsA(UsdGeom.BasisCurves) and prim.HasAPI("FaceMuscleAPI")
+    assert prim.GetRelationship("usdface:muscle:mesh").GetTargets()[0] == "/Face/Geom"
+    assert stage.GetPrimAtPath("/Face/Geom")  # the mesh layer is sublayered: the target resolves
+    assert len(UsdGeom.BasisCurves(stage.GetPrimAtPath("/Face/Muscles/orbicularisOris")).GetPointsAttr().Get()) == 32
+    assert not [f for f in check_layer(path) if f.severity == "error"]
+    # rigs convert units to the mesh's
+    mm = read_rig_layer(path, units="mm")
+    assert np.allclose(mm.muscle("mentalis").origin, 10 * rig.muscle("mentalis").origin)
+
+
+def test_muscles_simulate_commands(tissue_cli, mesh_layer, tmp_path, sample_assets, capsys):
+    rig = tmp_path / "rig.usda"
+    layout = sample_assets / "layouts" / "makehuman_hm08_face.layout.json"
+    assert tissue_cli("muscles", "--mesh", mesh_layer, "--layout", layout, "--force", "zygomaticMajor=20000",
+                      "-o", rig, "-q") == 0
+    assert read_rig_layer(rig).muscle("zygomaticMajor_R").max_force == 20000
+    timeline = tmp_path / "t.json"
+    timeline.write_text(json.dumps({"rate": 24, "keys": {"zygomaticMajor_L": [[1, 0.0], [3, 1.0]],
+                                                         "jawOpen": [[1, 0.0], [3, 0.3]]}}))
+    anim = tmp_path / "anim.usdc"
+    assert tissue_cli("simulate", "--mesh", mesh_layer, "--rig", rig, "--timeline", timeline, "-o", anim, "--json") == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["frames"] == 3 and summary["springs"] == 39380 and summary["elements"] == 3868
+    times, pts = read_animation_points(anim)
+    assert times.tolist() == [1.0, 2.0, 3.0] and pts.shape == (3, 2020, 3)
+    assert np.abs(pts[0] - pts[1]).max() > 0.05        # the face moves
+    t, contr = read_contractions(anim)
+    assert contr["zygomaticMajor_L"].tolist() == pytest.approx([0.0, 0.5, 1.0])
+    assert not contr["zygomaticMajor_R"].any()
+    # an expression preset, ramped and held
+    anim2 = tmp_path / "surprise.usdc"
+    assert tissue_cli("simulate", "--mesh", mesh_layer, "--rig", rig, "--expression", "surprise", "--ramp", "2",
+                      "--hold", "1", "-o", anim2, "-q") == 0
+    assert read_animation_points(anim2)[1].shape[0] == 4
+
+
+def test_bad_inputs_exit_2_and_leave_nothing(tissue_cli, mesh_layer, tmp_path, sample_assets, capsys):
+    rig = tmp_path / "rig.usda"
+    assert tissue_cli("muscles", "--mesh", mesh_layer, "-o", rig, "-q") == 0
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"rate": 24, "keys": {"risorius_L": [[0, 0.0], [4, 1.5]]}}))
+    out = tmp_path / "out.usdc"
+    assert tissue_cli("simulate", "--mesh", mesh_layer, "--rig", rig, "--timeline", bad, "-o", out) == 2
+    assert "risorius_L" in capsys.readouterr().err and not out.exists()
+    bad.write_text(json.dumps({"rate": 24, "keys": {"buccinator_L": [[0, 0.0], [4, 1.0]]}}))
+    assert tissue_cli("simulate", "--mesh", mesh_layer, "--rig", rig, "--timeline", bad, "-o", out) == 2
+    assert "buccinator_L" in capsys.readouterr().err
+    # a diverging simulation: stopped, frame and cause reported, nothing left behind
+    assert tissue_cli("simulate", "--mesh", mesh_layer, "--rig", rig, "--expression", "surprise", "--integrator",
+                      "explicit", "--dt", "0.004", "--ramp", "3", "--hold", "0", "-o", out) == 2
+    err = capsys.readouterr().err
+    assert "frame" in err and "diverged" in err and "stability limit" in err
+    assert not out.exists() and not list(tmp_path.glob(".out.tmp-*"))
+    with pytest.raises(InputError, match="no such file"):
+        read_rig_layer(tmp_path / "missing.usda")
+
+
+def test_far_origin_rig_is_refused(tissue_cli, mesh_layer, face, tmp_path, capsys):
+    from usdface.usd.layers import provenance
+
+    m = face.rig.muscle("procerus")
+    rig = face.rig.replace(muscles=tuple(x if x.name != "procerus" else m.replace(origin=m.origin + [0, 0, -8.0])
+                                         for x in face.rig.muscles))
+    path = tmp_path / "far.usda"
+    write_rig_layer(path, rig, mesh_path=mesh_layer, prov=provenance("test", options={}, inputs={}))
+    assert tissue_cli("simulate", "--mesh", mesh_layer, "--rig", path, "--expression", "anger", "-o",
+                      tmp_path / "a.usdc") == 2
+    assert "procerus (origin" in capsys.readouterr().err
+
+
+def test_fit_muscles_command(tissue_cli, mesh_layer, tmp_path, sample_assets, capsys):
+    cap, bind, rig = tmp_path / "cap.usdc", tmp_path / "bind.usda", tmp_path / "rig.usda"
+    layout = sample_assets / "layouts" / "makehuman_hm08_face.layout.json"
+    assert cli.main(["import-capture", str(sample_assets / "capture" / "JawMoCap.ma"), "-o", str(cap), "-q"]) == 0
+    assert cli.main(["bind", "--mesh", str(mesh_layer), "--capture", str(cap), "--layout", str(layout), "-o", str(bind),
+                     "-q"]) == 0
+    assert tissue_cli("muscles", "--mesh", mesh_layer, "--layout", layout, "-o", rig, "-q") == 0
+    out, report = tmp_path / "fit.usdc", tmp_path / "fit.json"
+    assert tissue_cli("fit-muscles", "--mesh", mesh_layer, "--rig", rig, "--capture", cap, "--binding", bind,
+                      "--frames", "200", "260", "--step", "20", "--refine", "0", "--report", report, "-o", out,
+                      "--json") == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["frames"] == 3
+    assert summary["errors"]["pass1"]["rms"] < summary["errors"]["still"]["rms"]
+    data = json.loads(report.read_text())
+    assert data["controls"]["timeCodes"] == [200.0, 220.0, 240.0]
+    values = np.asarray(data["controls"]["values"])
+    assert values.shape == (3, 24) and values.min() >= 0 and values.max() <= 1
+    times, pts = read_animation_points(out)
+    assert times.tolist() == [200.0, 220.0, 240.0]
