@@ -110,18 +110,16 @@ def test_explicit_default_step_is_stable_at_rest(face):
     assert math.isfinite(e1) and e1 < e0  # damped: the perturbation's energy decays
 
 
-def test_implicit_takes_frame_sized_steps(face):
-    """Implicit Euler at a whole 24 fps frame per step (about 500x the explicit step) stays stable
-    and lands on the same equilibrium as small steps."""
+def test_implicit_takes_frame_sized_steps(face, preset_runs):
+    """Implicit Euler at a whole 24 fps frame per step (about 480x the explicit step) stays stable
+    and lands on the same equilibrium as the default 1/240 s steps."""
     a, jaw = preset_contractions("surprise", face.rig.names)
-    finals = {}
-    for h in (1 / 240, 1 / 24):
-        sim = face.simulator(integrator="implicit", dt=h)
-        sim.set_controls(a, jaw=jaw)
-        rep = sim.run_to_equilibrium(max_time=3.0)
-        assert rep.converged
-        finals[h] = sim.skin()
-    assert np.linalg.norm(finals[1 / 24] - finals[1 / 240], axis=1).max() < 0.01  # cm
+    sim = face.simulator(integrator="implicit", dt=1 / 24)
+    sim.set_controls(a, jaw=jaw)
+    rep = sim.run_to_equilibrium(max_time=3.0, tol=0.1)
+    assert rep.converged
+    small_steps = face.mesh.points + preset_runs["realistic", "surprise"].displacement
+    assert np.linalg.norm(sim.skin() - small_steps, axis=1).max() < 0.01  # cm
 
 
 def test_energy_decreases_with_fixed_controls(face):

@@ -139,3 +139,17 @@ def test_fit_muscles_command(tissue_cli, mesh_layer, tmp_path, sample_assets, ca
     assert values.shape == (3, 24) and values.min() >= 0 and values.max() <= 1
     times, pts = read_animation_points(out)
     assert times.tolist() == [200.0, 220.0, 240.0]
+
+
+def test_installed_command(tmp_path, sample_assets, repo_root):
+    """The tissue subcommands through ``python -m usdface`` (a separate process, as users run it)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "rig.usda"
+    proc = subprocess.run([sys.executable, "-m", "usdface", "muscles", "--mesh",
+                           str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj"), "-o", str(out), "--json"],
+                          capture_output=True, text=True, timeout=120, cwd=str(repo_root))
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["muscles"][0] == "zygomaticMajor_L"
+    assert read_rig_layer(out).placement == "mesh"
