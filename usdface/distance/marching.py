@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..numba_cache import CACHE, notice_compiling
 
 try:
     import numba as _nb
@@ -90,6 +91,7 @@ class MarchingMesh:
         self.n_points = n
         self._build_wedges(p, t)
         nb = triangle_neighbours(t)
+        notice_compiling("the geodesic search kernels", _unfold_obtuse_corners, _march_many)
         cnt, sb, su, sw, geo = _unfold_obtuse_corners(p, t, nb, int(max_unfold))
         k = int(cnt[1])
         order = np.argsort(sb[:k], kind="stable")
@@ -182,7 +184,7 @@ def triangle_neighbours(triangles) -> np.ndarray:
 
 if HAVE_NUMBA:
 
-    @_nb.njit(cache=True, nogil=True, inline="always")
+    @_nb.njit(cache=CACHE, nogil=True, inline="always")
     def _through_edge(du, da, L, px, py):
         """Distance at (px, py), py <= 0, from the point source fitted to d = du at (0, 0) and
         d = da at (L, 0) (on the y > 0 side), when the straight ray source -> point crosses the edge
@@ -205,7 +207,7 @@ if HAVE_NUMBA:
         dy = py - sy
         return np.sqrt(dx * dx + dy * dy)
 
-    @_nb.njit(cache=True, nogil=True, inline="always")
+    @_nb.njit(cache=CACHE, nogil=True, inline="always")
     def _sift_up(hk, hv, pos, i, key, v):
         """Move heap slot i (to hold vertex v with ``key``) up to its place."""
         while i > 0:
@@ -221,7 +223,7 @@ if HAVE_NUMBA:
         hv[i] = v
         pos[v] = i
 
-    @_nb.njit(cache=True, nogil=True, inline="always")
+    @_nb.njit(cache=CACHE, nogil=True, inline="always")
     def _offer(dist, pos, hk, hv, size, v, cand):
         """Lower v's tentative distance to ``cand`` if shorter (insert or decrease-key); returns
         the heap size."""
@@ -234,7 +236,7 @@ if HAVE_NUMBA:
             _sift_up(hk, hv, pos, i, cand, v)
         return size
 
-    @_nb.njit(cache=True, nogil=True, inline="always")
+    @_nb.njit(cache=CACHE, nogil=True, inline="always")
     def _pop(hk, hv, pos, size):
         """Remove the root of a heap of ``size`` entries (the caller reads it first)."""
         size -= 1
@@ -260,7 +262,7 @@ if HAVE_NUMBA:
             pos[lv] = i
         return size
 
-    @_nb.njit(cache=True, nogil=True)
+    @_nb.njit(cache=CACHE, nogil=True)
     def _march_one(ptr, wa, wb, wla, wlb, wcos, wsin, sptr, su, sw, slo, slu, slw, scos, ssin,
                    st_v, st_d, needed, n_needed, limit, slack, dist, pos, hk, hv):
         """One search with an indexed binary heap; ``pos[v]``: heap slot, -1 not reached, -2 settled.
@@ -351,7 +353,7 @@ if HAVE_NUMBA:
                     size = _offer(dist, pos, hk, hv, size, a, cand)
         return settled
 
-    @_nb.njit(cache=True, nogil=True)
+    @_nb.njit(cache=CACHE, nogil=True)
     def _emit(out_b, out_u, out_w, out_g, k, b, u, w, ux, uy, wx, wy):
         """Row k = virtual triangle (u at (ux, uy), w at (wx, wy)) of target b at the origin; returns
         k + 1 (k when degenerate)."""
@@ -374,7 +376,7 @@ if HAVE_NUMBA:
         out_g[k, 4] = abs(ex * by - ey * bx) / (lo * lu)
         return k + 1
 
-    @_nb.njit(cache=True)
+    @_nb.njit(cache=CACHE)
     def _unfold_obtuse_corners(p, t, nb, max_unfold):
         """Split every obtuse corner (see :class:`MarchingMesh`); returns (counts, b, u, w, geometry)."""
         nt = t.shape[0]
@@ -472,7 +474,7 @@ if HAVE_NUMBA:
         cnt = np.array([n_obtuse, k, n_split], np.int64)
         return cnt, out_b, out_u, out_w, out_g
 
-    @_nb.njit(cache=True, nogil=True)
+    @_nb.njit(cache=CACHE, nogil=True)
     def _at_point(p0, p1, p2, d0, d1, d2, q):
         """Distance at point q inside triangle (p0, p1, p2) from its vertices' distances: the
         straight candidates d_i + |q - p_i| and the triangle update through each edge."""
@@ -502,7 +504,7 @@ if HAVE_NUMBA:
             best = min(best, _through_edge(du, da, L, (wq * ex).sum(), min(0.0, (wq * ey).sum())))
         return best
 
-    @_nb.njit(cache=True, parallel=True)
+    @_nb.njit(cache=CACHE, parallel=True)
     def _march_many(ptr, wa, wb, wla, wlb, wcos, wsin, sptr, su, sw, slo, slu, slw, scos, ssin,
                     start_ptr, start_v, start_d, needed, n_needed, limit, slack, pts, sink_tri, sink_q,
                     direct_ptr, direct_to, direct_d, out_v, out_s, settled):
@@ -600,6 +602,7 @@ def march(mesh: MarchingMesh, points, source_tri_vertices, source_barycentrics, 
     out_v = np.empty((s, n), dtype=dtype)
     out_s = np.empty((s, s), dtype=np.float64)
     settled = np.zeros(s, dtype=np.int64)
+    notice_compiling("the geodesic search kernels", _march_many)
     old_chunk = _nb.get_parallel_chunksize()
     _nb.set_parallel_chunksize(1)   # hand sources out one at a time: balanced when CPUs are shared
     try:
