@@ -134,16 +134,20 @@ def frame_extents(points: np.ndarray) -> np.ndarray:
     return np.stack([xyz.min(axis=2), xyz.max(axis=2)], axis=1)
 
 
-def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, start: float, rate: float,
-                          n_frames: int, units, transfer: dict, prov: dict, progress=None) -> str:
+def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | None = None, start: float,
+                          rate: float, n_frames: int, units, transfer: dict, prov: dict, progress=None) -> str:
     """Stream time-sampled points into an animation layer (.usdc), saving after every chunk.
 
     Parameters
     ----------
-    chunks : iterable of (slice, ndarray (f, N, 3) float32)
-        Vertex displacements for frames ``slice`` (0-based), in mesh units.
-    rest_points : ndarray (N, 3)
-        The mesh's rest positions; authored points = rest + displacement.
+    chunks : iterable of (slice, ndarray (f, N, 3) float32) or (slice, points, extents (f, 2, 3))
+        Frames ``slice`` (0-based) and their vertex displacements from ``rest_points``, or, when
+        ``rest_points`` is None, their vertex positions (mesh units). A third item gives each
+        frame's bounding box (computed here otherwise).
+    rest_points : ndarray (N, 3), optional
+        The mesh's rest positions; authored points = rest + displacement. None: the chunks hold
+        the positions (:meth:`usdface.rbf.RBFTransfer.iter_chunks` with ``offset`` adds the rest
+        inside its matrix product, and gives the extents too: the writer then only writes).
     transfer : dict
         FaceTransferAPI values: mode, kernel, distanceMethod, markerNames, widths, regularization,
         polynomial, conditionNumber, parameters (dict).
@@ -151,7 +155,7 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
     require_registered()
     mesh_stage = open_stage(mesh_path, what="mesh")
     mesh_prim_path = find_mesh(mesh_stage).GetPath()
-    rest = np.asarray(rest_points, dtype=np.float32)
+    rest = None if rest_points is None else np.asarray(rest_points, dtype=np.float32)
     with AtomicLayer(path) as stage:
         set_stage_metadata(stage, units=units, default_prim=mesh_stage.GetDefaultPrim().GetName(), rate=rate,
                            start=start, end=start + n_frames - 1)
@@ -175,9 +179,11 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
         extent_attr = mesh.CreateExtentAttr()
         layer = stage.GetRootLayer()
         written = 0
-        for frames, disp in prefetch(chunks):
-            pts = disp + rest[None]
-            extents = frame_extents(pts)
+        for item in prefetch(chunks):
+            frames, pts = item[0], item[1]
+            if rest is not None:
+                pts = pts + rest[None]
+            extents = item[2] if len(item) > 2 and item[2] is not None else frame_extents(pts)
             # (no Sdf.ChangeBlock here: with large arrays it made the sets ~2x slower)
             for k, f in enumerate(range(frames.start, frames.stop)):
                 t = Usd.TimeCode(start + f)
