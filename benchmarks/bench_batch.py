@@ -55,7 +55,10 @@ def main() -> None:
     ap.add_argument("--big-subdiv", type=int, default=3, help="subdivision levels of the big face (3: ~125k vertices)")
     ap.add_argument("--out", default="/tmp/usdface-bench-batch")
     args = ap.parse_args()
+    import os
     from usdface.batch import load_manifest, run_batch
+    print(f"load average at start {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs (a shared machine: compare "
+          f"within this run)")
 
     out = Path(args.out)
     shutil.rmtree(out, ignore_errors=True)
@@ -92,9 +95,17 @@ def main() -> None:
             t = time.perf_counter()
             s = run_batch(m, workers=workers, force=True, quiet=True)
             results[(label, cache_state)] = sec = time.perf_counter() - t
-            dist = sum(r["steps"].get("distances", 0) or 0 for r in s["shots"])
+            steps: dict = {}
+            for r in s["shots"]:
+                for k, v in (r.get("steps") or {}).items():
+                    steps[k] = steps.get(k, 0.0) + (v or 0.0)
+            busy = sum(r["seconds"] or 0.0 for r in s["shots"])
             print(f"{label:9s} {cache_state} cache: {sec:6.1f} s wall, {s['counts']['ok']}/12 ok, distances "
-                  f"{s['cache']['steps'].get('distances')}, time in distances {dist:.1f} s")
+                  f"{s['cache']['steps'].get('distances')}; shot time {busy:.1f} s = "
+                  + ", ".join(f"{k} {v:.1f}" for k, v in steps.items()), flush=True)
+            if cache_state == "warm":
+                for line in s["_text"][:-2]:
+                    print("    " + line)
             assert s["counts"]["ok"] == 12, json.dumps(s["shots"], indent=1, default=str)[:3000]
     # byte-identity serial vs parallel on every layer
     same = 0

@@ -206,9 +206,7 @@ def grid_face(n_side: int):
 
 
 def child(mode: str, n_side: int, frames: int, out_dir: str) -> dict:
-    """One in-process measurement in a fresh process (so maxrss is this job's peak)."""
-    import resource
-
+    """One in-process measurement in a fresh process (so the peak RSS is this job's)."""
     import usdface  # noqa: F401
     from usdface.distance import euclidean_at_sources, euclidean_distances
     from usdface.rbf import RBFTransfer
@@ -232,17 +230,21 @@ def child(mode: str, n_side: int, frames: int, out_dir: str) -> dict:
         d_vc = euclidean_distances(mesh.points, tri, bary)
         d_cc = euclidean_at_sources(mesh.points, tri, bary)
         solver = RBFTransfer(d_vc, d_cc, widths=2.0, n_markers=41).fit()
-        chunks = solver.iter_chunks(disp, chunk_frames=CHUNK)
+        if hasattr(solver, "_offset_rhs"):     # the transfer processor's path: rest and extents in the product
+            chunks = solver.iter_chunks(disp, chunk_frames=CHUNK, offset=mesh.points, extents=True,
+                                        blas_threads=1, buffers=3)
+        else:                                  # older usdface (the "before" numbers)
+            chunks = solver.iter_chunks(disp, chunk_frames=CHUNK)
     if mode == "compute":
         for _ in chunks:
             pass
     else:
+        absolute = mode == "transfer" and hasattr(solver, "_offset_rhs")
         write_animation_layer(Path(out_dir) / f"anim_{mode}.usdc", chunks, mesh_path=mesh_path,
-                              rest_points=mesh.points, start=0, rate=60.0, n_frames=frames, units="cm",
-                              transfer=settings, prov={})
+                              rest_points=None if absolute else mesh.points, start=0, rate=60.0, n_frames=frames,
+                              units="cm", transfer=settings, prov={})
     seconds = time.perf_counter() - t0
-    return {"seconds": seconds, "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            "points": mesh.n_points}
+    return {"seconds": seconds, "maxrss_mb": float(peak_line().split()[1]), "points": mesh.n_points}
 
 
 def in_process(args, work: Path) -> dict:

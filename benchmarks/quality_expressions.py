@@ -64,6 +64,12 @@ def main_configs() -> list[T]:
         out += [T(m, "paper", pin="none"), T(m, "paper", width_cm=W2, pin="none")]
         out += [T(m, "interpolate", pin=p) for p in ("border", "none", "upper")]
         out += [T(m, "interpolate", width_cm=W2, pin=p) for p in ("border", "none", "upper")]
+    # the same geodesic and hybrid rows on the fast-marching back-end (accurate surface geodesics;
+    # the edge-graph rows above are the paper's Eq. 7)
+    for m in ("geodesic", "hybrid"):
+        out += [T(m, "paper", pin="none", backend="fmm"), T(m, "paper", width_cm=W2, pin="none", backend="fmm")]
+        out += [T(m, "interpolate", pin=p, backend="fmm") for p in ("border", "none", "upper")]
+        out += [T(m, "interpolate", width_cm=W2, pin=p, backend="fmm") for p in ("border", "none", "upper")]
     return out
 
 

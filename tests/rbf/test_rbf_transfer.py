@@ -314,6 +314,13 @@ def test_offset_and_extents_inside_the_product(face):
         np.testing.assert_array_equal(boxes[:, 1], got.max(axis=1))
     with pytest.raises(InputError, match="offset"):
         next(iter(rbf.iter_chunks(D, offset=rest[:-1])))
+    # a ring of 3 buffers: the same values, three distinct buffers reused in turn
+    ring = [(c.copy(), c.__array_interface__["data"][0])
+            for _, c in rbf.iter_chunks(D, chunk_frames=5, offset=rest, buffers=3, dtype=np.float64)]
+    np.testing.assert_array_equal(np.concatenate([c for c, _ in ring]), got)
+    assert [p for _, p in ring] == [ring[i % 3][1] for i in range(len(ring))] and len({p for _, p in ring}) == 3
+    with pytest.raises(OptionError, match="buffers"):
+        rbf.iter_chunks(D, buffers=0)
 
 
 def test_polynomial_needs_four_non_coplanar_valid_centres():

@@ -282,9 +282,11 @@ def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -
         if info["workers"] == 0:
             status_out.note("dask: the scheduler has no workers yet; shots wait until one connects")
         futures = {}
-        for shot in todo:
+        # longest first (LPT): a big character's takes submitted last would run one after the other
+        # at the end while the other workers sit idle; records stay in manifest order
+        for rank, shot in enumerate(sorted(todo, key=shot_cost, reverse=True)):
             fut = client.submit(execute_shot, shot, cache_root, key=f"usdface-shot-{shot.name}-{id(shot)}",
-                                pure=False, retries=0)
+                                pure=False, retries=0, priority=len(todo) - rank)
             futures[fut] = shot
             status_out.start(shot)
         for fut in as_completed(list(futures), loop=client.loop):
@@ -301,6 +303,24 @@ def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def shot_cost(shot: Shot) -> float:
+    """A relative estimate of a shot's run time, to hand out the longest shots first.
+
+    Writing the time-sampled points dominates a shot: its cost grows with vertices x frames. The
+    mesh file's size stands for the vertex count and the trimmed frame count (or the capture
+    file's size) for the frames; only the order matters.
+    """
+    def size(path) -> float:
+        try:
+            return float(os.path.getsize(path))
+        except (OSError, TypeError):
+            return 1.0
+
+    trim = shot.options.get("trim")
+    frames = float(trim[1] - trim[0]) if isinstance(trim, (list, tuple)) and len(trim) == 2 else size(shot.capture)
+    return size(shot.mesh) * max(frames, 1.0)
 
 
 def _takes_n_workers(client) -> bool:
@@ -356,15 +376,16 @@ class _StatusPrinter:
 
 
 def summary_table(summary: dict) -> list[str]:
-    """The batch summary as terminal lines: one row per shot, then totals."""
-    rows = [("shot", "status", "seconds", "capture", "distances", "error")]
+    """The batch summary as terminal lines: one row per shot (with seconds per step), then totals."""
+    rows = [("shot", "status", "seconds", "capture", "distances", "steps (s)", "error")]
     for r in summary["shots"]:
         c = r.get("cache", {})
         err = (r.get("error") or r.get("reason") or "").splitlines()
         rows.append((r["name"], r["status"], f"{r['seconds']:.1f}" if r.get("seconds") is not None else "-",
-                     c.get("import-capture", "-"), c.get("distances", "-"), (err[0] if err else "")[:100]))
-    widths = [max(len(row[i]) for row in rows) for i in range(5)]
-    lines = ["  ".join(v.ljust(w) for v, w in zip(row[:5], widths)) + "  " + row[5] for row in rows]
+                     c.get("import-capture", "-"), c.get("distances", "-"), step_times(r.get("steps")),
+                     (err[0] if err else "")[:100]))
+    widths = [max(len(row[i]) for row in rows) for i in range(6)]
+    lines = ["  ".join(v.ljust(w) for v, w in zip(row[:6], widths)) + "  " + row[6] for row in rows]
     lines.insert(1, "  ".join("-" * w for w in widths) + "  -----")
     n = summary["counts"]
     cc = summary["cache"]["steps"]
@@ -375,6 +396,13 @@ def summary_table(summary: dict) -> list[str]:
                  + (f"; cache {cache_txt}" if cache_txt else ""))
     lines.append(f"summary: {summary['summaryFile']}")
     return lines
+
+
+def step_times(steps) -> str:
+    """``{"import-mesh": 0.41, "transfer": 5.2}`` -> ``"import-mesh 0.4, transfer 5.2"`` ("-" if none)."""
+    if not steps:
+        return "-"
+    return ", ".join(f"{k} {v:.1f}" for k, v in steps.items() if isinstance(v, (int, float)))
 
 
 def _write_json(path: Path, data: dict) -> None:

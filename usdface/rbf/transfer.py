@@ -681,6 +681,7 @@ class RBFTransfer:
         reuse_buffer: bool = False,
         offset=None,
         extents: bool = False,
+        buffers: int | None = None,
     ) -> Iterator[tuple]:
         """Stream vertex displacements in chunks of frames.
 
@@ -711,6 +712,12 @@ class RBFTransfer:
         extents : bool
             Also yield each frame's bounding box (min and max over the vertices of the yielded
             points), reduced from the matrix product's contiguous rows.
+        buffers : int, optional
+            Cycle through this many output buffers instead of a fresh array per chunk (no page
+            faults after the first round): a chunk stays valid until ``buffers - 1`` more chunks
+            have been produced (3 for a consumer one chunk behind a producer one chunk ahead, as
+            :func:`usdface.usd.analysis_layer.write_animation_layer`'s prefetch). ``reuse_buffer``
+            is ``buffers=1``.
 
         Yields
         ------
@@ -732,7 +739,11 @@ class RBFTransfer:
         """
         disp, scan, chunk_frames, dtype = self._prepare(displacements, chunk_frames, dtype, blas_threads)
         rhs = None if offset is None else self._offset_rhs(offset, dtype)
-        return self._generate(disp, scan, chunk_frames, dtype, blas_threads, reuse_buffer=bool(reuse_buffer),
+        if buffers is not None and (isinstance(buffers, bool) or not isinstance(buffers, (int, np.integer))
+                                    or buffers < 1):
+            raise OptionError(f"buffers: expected an integer >= 1 or None; got {buffers!r}")
+        n_buffers = 1 if reuse_buffer else (int(buffers) if buffers is not None else 0)
+        return self._generate(disp, scan, chunk_frames, dtype, blas_threads, n_buffers=n_buffers,
                               rhs=rhs, extents=bool(extents))
 
     def _prepare(self, displacements, chunk_frames, dtype, blas_threads):
@@ -752,30 +763,31 @@ class RBFTransfer:
         self._ensure_fitted()
         return disp, self._scan(disp), int(chunk_frames), dtype
 
-    def _generate(self, disp, scan, chunk_frames, dtype, blas_threads, out=None, reuse_buffer=False,
+    def _generate(self, disp, scan, chunk_frames, dtype, blas_threads, out=None, n_buffers=0,
                   rhs=None, extents=False):
         valid, pid, keys = scan
         F = disp.shape[0]
         if F == 0:
             return
         tmp = self._gemm_buffer(min(F, chunk_frames), dtype)
-        buffer = None
-        if reuse_buffer and out is None:
-            buffer = np.empty((min(F, chunk_frames), self.n_vertices, 3), dtype=dtype)
+        ring = []
+        if n_buffers and out is None:
+            ring = [np.empty((min(F, chunk_frames), self.n_vertices, 3), dtype=dtype)
+                    for _ in range(min(n_buffers, -(-F // chunk_frames)))]
         limiter = None
         if blas_threads is not None:
             from threadpoolctl import ThreadpoolController
 
             limiter = ThreadpoolController()
         held = None
-        for a in range(0, F, chunk_frames):
+        for i, a in enumerate(range(0, F, chunk_frames)):
             b = min(F, a + chunk_frames)
             eff = self._effective(disp[a:b], valid[a:b], pid[a:b], keys, held)
             held = eff[-1].copy()
             if out is not None:
                 chunk = out[a:b]
-            elif buffer is not None:
-                chunk = buffer[: b - a]
+            elif ring:
+                chunk = ring[i % len(ring)][: b - a]
             else:
                 chunk = np.empty((b - a, self.n_vertices, 3), dtype=dtype)
             boxes = np.empty((b - a, 2, 3), dtype=dtype) if extents else None

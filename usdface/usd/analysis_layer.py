@@ -106,9 +106,10 @@ def prefetch(iterable):
     """Iterate ``iterable`` one item ahead in a worker thread.
 
     The transfer's chunks are numpy matrix products (which release the GIL): computing the next
-    chunk while USD writes the current one overlaps the two instead of adding them. Items must
-    not share buffers (RBFTransfer.iter_chunks with reuse_buffer=False, its default). An
-    exception in the producer is raised here, in the consumer.
+    chunk while USD writes the current one overlaps the two instead of adding them. An item must
+    stay valid while the next one is computed: fresh arrays, or a ring of at least 3 buffers
+    (RBFTransfer.iter_chunks ``buffers=3``; not ``reuse_buffer=True``). An exception in the
+    producer is raised here, in the consumer.
     """
     from concurrent.futures import ThreadPoolExecutor
 
