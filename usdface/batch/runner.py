@@ -47,8 +47,11 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
             capture = shot.capture  # `run` tracks and lifts video captures itself
             from ..processors.run import run
 
-            summary = run(shot.mesh, capture, shot.output, cache=cache, **shot.options)
-            rec["steps"] = {k: v.get("seconds") for k, v in summary["steps"].items()}
+            with step_clock() as clock:
+                summary = run(shot.mesh, capture, shot.output, cache=cache, **shot.options)
+            rec["steps"] = {k: clock.get(k, v.get("seconds")) for k, v in summary["steps"].items()}
+            rec["steps"]["other"] = round(max(0.0, time.perf_counter() - started - sum(
+                x for x in rec["steps"].values() if isinstance(x, (int, float)))), 3)
             rec["frames"] = summary["frames"]
             rec["vertices"] = summary["vertices"]
             rec["cache"] = {k: v["cache"]["status"] for k, v in summary["steps"].items() if "cache" in v}
@@ -69,6 +72,61 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
         rec["traceback"] = traceback.format_exc(limit=8)
     rec["seconds"] = round(time.perf_counter() - started, 3)
     return rec
+
+
+#: the processors `run` calls, by step name: (module, function)
+_STEP_FUNCTIONS = {"import-mesh": ("import_mesh", "import_mesh"), "import-capture": ("import_capture", "import_capture"),
+                   "bind": ("bind", "bind"), "distances": ("distances", "distances"),
+                   "transfer": ("transfer", "transfer"), "skel": ("skel", "skel"), "track": ("track", "track"),
+                   "lift": ("lift", "lift")}
+_CORE_STEPS = ("import-mesh", "import-capture", "bind", "distances", "transfer")
+
+
+class step_clock:
+    """Wall seconds of each processor `run` calls during the ``with`` block: ``{step: seconds}``.
+
+    Not every processor reports its own time in its summary, so the processor functions are
+    wrapped for the duration of one shot (run looks them up when it runs; a worker runs one shot at
+    a time) and restored after. Steps called twice add up.
+    """
+
+    def __enter__(self) -> dict:
+        import importlib
+
+        self.times: dict = {}
+        self._saved = []
+        for step, (mod_name, fn_name) in _STEP_FUNCTIONS.items():
+            name = f"usdface.processors.{mod_name}"
+            if step not in _CORE_STEPS and name not in sys.modules:
+                continue        # video and skeleton processors import cv2 and more: only when used
+            try:
+                mod = importlib.import_module(name)
+            except ImportError:  # pragma: no cover - an optional processor
+                continue
+            fn = getattr(mod, fn_name, None)
+            if fn is None or getattr(fn, "_usdface_step_clock", False):
+                continue
+            self._saved.append((mod, fn_name, fn))
+            setattr(mod, fn_name, self._timed(step, fn))
+        return self.times
+
+    def _timed(self, step, fn):
+        times = self.times
+
+        def timed(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                times[step] = round(times.get(step, 0.0) + time.perf_counter() - t0, 3)
+        timed._usdface_step_clock = True
+        timed.__wrapped__ = fn
+        return timed
+
+    def __exit__(self, *exc):
+        for mod, name, fn in self._saved:
+            setattr(mod, name, fn)
+        return False
 
 
 class single_threaded:
