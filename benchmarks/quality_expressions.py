@@ -97,12 +97,13 @@ def section(title: str) -> None:
 
 
 def width_sweep(setup, names, deltas, h_cm) -> list[str]:
-    factors = (0.75, 1.0, 1.25, 1.5, 2.0)
+    factors = (0.6, 0.75, 0.9, 1.0, 1.25, 1.5, 2.0)
     cfgs = []
     for f in factors:
         for m in METHODS:
             cfgs.append(T(m, "interpolate", width_cm=round(f * h_cm, 4), pin="border"))
             cfgs.append(T(m, "paper", width_cm=round(f * h_cm, 4), pin="none"))
+        cfgs.append(T("hybrid", "interpolate", width_cm=round(f * h_cm, 4), pin="border", backend="fmm"))
     rep = evaluate(setup.mesh, setup.region_list, setup.binding, names, deltas, configs=cfgs, setup=setup)
     rows = {r["label"]: r for r in summary_rows(rep)}
     jo = rep.shape("jawOpen")

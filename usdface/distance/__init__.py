@@ -5,9 +5,9 @@ Paper (seed 000) Sec. 4.2 and 5: Euclidean (Eq. 6), geodesic mesh-based (Eq. 7) 
 matrices for the RBF transfer. All lengths are in mesh units.
 
 - :func:`euclidean_distances`, :func:`euclidean_at_sources` (Eq. 6)
-- :class:`GeodesicSolver` with back-ends ``"fmm"`` (fast marching with exact point-source
-  updates, the default: within 0.5 % of exact), ``"graph"`` (shortest edge paths, Eq. 7; the
-  paper's), ``"heat"`` (potpourri3d heat method) and ``"exact"`` (pygeodesic MMP); one-call
+- :class:`GeodesicSolver` with back-ends ``"graph"`` (shortest edge paths, Eq. 7; the paper's,
+  the default), ``"fmm"`` (fast marching with exact point-source updates: within 0.5 % of exact),
+  ``"heat"`` (potpourri3d heat method) and ``"exact"`` (pygeodesic MMP); one-call
   :func:`geodesic_distances`
 - :func:`hybrid_distances`, :func:`hybrid_weights` (Eq. 8), geodesics only where ``w > 0.6``
 - :mod:`usdface.distance.graph`: edge graphs, components, the multi-source search kernel

@@ -2,18 +2,22 @@
 
 Back-ends of :class:`GeodesicSolver`:
 
-``"fmm"`` (default)
-    Fast marching with exact point-source triangle updates and split obtuse corners
-    (:mod:`usdface.distance.marching`): surface geodesics within 0.1-0.5 % of exact (MMP) on face
-    meshes, at 1.5-2x the CPU time of an edge-graph search (one search per source, sources in
-    parallel). Close to, not exactly, symmetric.
-``"graph"``
+``"graph"`` (default)
     The paper's mesh-based geodesic distance (Eq. 7): the shortest path along mesh edges. A
     surface-point source starts from the three vertices of its triangle at their Euclidean distance
     from the point (a virtual node). One search per source over the whole mesh (multi-source,
     never per pair), exactly equal to :func:`scipy.sparse.csgraph.dijkstra` on the same graph.
     Edge paths overestimate surface distances by 5-9 % on average whatever the resolution (the
     path zig-zags along edge directions), as in the paper.
+``"fmm"``
+    Fast marching with exact point-source triangle updates, split obtuse corners and late-update
+    reopening (:mod:`usdface.distance.marching`): surface geodesics within 0.03-0.4 % of exact
+    (MMP) on face meshes (0.03 % at 560k vertices), at 1.5-1.7x the CPU time of an edge-graph
+    search (one search per source, sources in parallel). Close to, not exactly, symmetric. Not
+    the default: at the pipeline's kernel width rule (1.1 x marker spacing) the transfer of the
+    sample expression shapes is better on the edge-graph distances (face error 57.7 % vs 62.0 %,
+    benchmarks/quality_expressions.py); with a 0.75 x width, fmm hybrid gives 48.6 %, the best of
+    all (see the issue note).
 ``"heat"``
     The heat method (Crane et al. 2013) of potpourri3d (``MeshHeatMethodDistanceSolver``,
     intrinsic-Delaunay "robust" Laplacian by default). potpourri3d takes vertex sources only, so
@@ -57,9 +61,9 @@ from .euclidean import (_check_dtype, check_matrix_memory, pairwise_euclidean, s
 __all__ = ["BACKENDS", "DEFAULT_BACKEND", "DistanceReport", "GeodesicResult", "GeodesicSolver", "auto_t_coef",
            "geodesic_distances"]
 
-BACKENDS = ("fmm", "graph", "heat", "exact")
-#: the back-end used when none is named: accurate and about as fast as the edge graph
-DEFAULT_BACKEND = "fmm"
+BACKENDS = ("graph", "fmm", "heat", "exact")
+#: the back-end used when none is named (the paper's Eq. 7; "fmm" for accurate surface geodesics)
+DEFAULT_BACKEND = "graph"
 COMPONENT_POLICIES = ("error", "euclidean", "inf")
 
 #: t_coef = max(1, (L / (AUTO_T_RINGS h))^2): sqrt(t) never smaller than the bounding-box

@@ -20,12 +20,20 @@ across the opposite edge are unfolded into b's plane until a vertex w falls in b
 are causal (u and w settle before b when the wave crosses uw). They are evaluated when b leaves the
 queue; if they give a shorter distance, b goes back in the queue with it.
 
+Late updates. Close to a source (or a pseudo-source: a hole's rim, a saddle vertex) even an acute
+corner can settle before the vertex its update needs, and a split may need a vertex farther out.
+When a settled vertex later gets a shorter triangle update (beyond float32 rounding) it is
+reopened and updates its neighbours again (a label-correcting step; rare, near the sources).
+With it the result is exact, up to the float32 tables' rounding, wherever the surface develops
+into the plane (tests/distance/test_marching.py: random planar and folded meshes).
+
 Accuracy against exact polyhedral geodesics (MMP), mean relative error over vertex-source pairs
-farther than one mean edge length (``benchmarks/bench_distances.py``): 0.42 % on the 2020-vertex
-MakeHuman face (half its triangles are obtuse), 0.16 % on it refined to 31k vertices, 0.09 % on an
-isotropic 30k-vertex remesh; edge paths (``"graph"``) are 5-9 % long on all of them. Errors remain
-where the wave wraps around a hole or a saddle vertex (the true front there has another centre than
-the circle fit assumes); they shrink with the edge length.
+farther than one mean edge length: 0.34 % on the 2020-vertex MakeHuman face (half its triangles
+are obtuse), 0.13 % on it refined to 31k vertices, 0.03 % at 560k (benchmarks/bench_distances.py,
+pairs up to 3 kernel widths), 0.09 % on an isotropic 30k-vertex remesh; edge paths (``"graph"``)
+are 5-9 % long on all of them. What error remains comes from where the wave wraps around a hole
+or a saddle vertex (the true front there has another centre than the circle fit assumes) and
+shrinks with the edge length.
 
 A surface-point source starts from its triangle's vertices at their straight distance from the
 point (exact: the point lies in the triangle's plane). Distances at the source points themselves
