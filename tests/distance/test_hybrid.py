@@ -107,3 +107,13 @@ def test_bad_options(face):
         hybrid_distances(s, tri, bary, [np.array([10**7])], radius=1.0, sigma=2.0)
     with pytest.raises(InputError):
         hybrid_distances(s, tri, bary, [], radius=1.0, sigma=2.0)
+
+
+def test_refuses_before_any_work_when_memory_is_short(face):
+    from usdface.errors import ResourceError
+    pts, tris, loops, tri, bary = face
+    solver = GeodesicSolver(pts, tris, backend="fmm", memory_limit=1 << 20)
+    with pytest.raises(ResourceError, match=r"hybrid \(fmm\) distances of 2020 vertices x 41 sources .* needs about "
+                                            r".*Euclidean matrix \+ matrix 662.6 KB.* but only 1.0 MB is allowed"):
+        hybrid_distances(solver, tri, bary, loops, radius=1.0, sigma=2.0)
+    assert solver._marching is None          # refused before the search tables were built
