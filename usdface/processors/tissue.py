@@ -422,7 +422,7 @@ def preset_contact_sheet(mesh_paths, output, *, presets=None, size=(360, 420), i
 
 def register_cli(sub) -> None:
     """Add the ``muscles``, ``simulate`` and ``fit-muscles`` subcommands."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
     from ..tissue.expressions import PRESET_NAMES
     from ..tissue.integrators import INTEGRATORS
 

@@ -264,7 +264,7 @@ def track(video, output, *, seeds=None, auto: int | None = None, layout=None, me
 
 def register_cli(subparsers) -> None:
     """Add ``usdface track`` to the CLI's subparsers."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "track", help="track coloured face markers in a video -> 2D track layer (+ CSV, preview)",
