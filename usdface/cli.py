@@ -72,6 +72,7 @@ def _add_subcommands(sub) -> None:
     p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"],
                    help="which distance matrix of the analysis layer (default: its only one)")
     add_options(p, TransferOptions)
+    add_options(p, RunOptions, only={"head_motion"})
     p.add_argument("-o", "--output", required=True, help="animation layer to write (.usdc)")
     add_common_options(p)
     p.set_defaults(func=_cmd_transfer)
@@ -157,6 +158,7 @@ def _cmd_transfer(args) -> dict:
     from .processors.transfer import transfer
 
     return transfer(args.mesh, args.capture, args.binding, args.analysis, args.output, method=args.method,
+                    head_motion=getattr(args, "head_motion", True),
                     **options_from_args(TransferOptions, args).to_dict())
 
 

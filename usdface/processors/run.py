@@ -146,7 +146,8 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
         transfer_options = dict(o.group(TransferOptions).to_dict(), method=o.method)
         if "anim.usdc" in f:
             steps["transfer"] = transfer(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"],
-                                         f["analysis.usdc"], f["anim.usdc"], **transfer_options)
+                                         f["analysis.usdc"], f["anim.usdc"], head_motion=o.head_motion,
+                                         **transfer_options)
         if "skel.usdc" in f:
             from .skel import skel
 
@@ -158,7 +159,8 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
             write_shot_stage(f[shot_name], layers=[f[motion], f["analysis.usdc"], f["binding.usda"]],
                              rate=cap["rate"], start=cap["startTimeCode"],
                              end=cap["startTimeCode"] + cap["frames"] - 1, units=steps["import-mesh"]["units"],
-                             stabilized_capture=cap["stabilized"])
+                             # markers follow the face: head-stabilised unless the head motion is delivered
+                             stabilized_capture=cap["stabilized"] and not o.head_motion)
         summary = {
             "outputDir": str(out), "shot": str(out / "shot.usda"), "mesh": str(mesh), "capture": str(capture),
             "method": o.method, "backend": o.backend if o.method != "euclidean" else None, "rbf": o.rbf,

@@ -135,8 +135,12 @@ def frame_extents(points: np.ndarray) -> np.ndarray:
 
 
 def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, start: float, rate: float,
-                          n_frames: int, units, transfer: dict, prov: dict, progress=None) -> str:
+                          n_frames: int, units, transfer: dict, prov: dict, progress=None,
+                          head_motion: np.ndarray | None = None) -> str:
     """Stream time-sampled points into an animation layer (.usdc), saving after every chunk.
+
+    The layer sublayers the mesh layer it animates (relative path), so it imports alone as the
+    animated face; a shot stage that also sublayers the mesh composes it once more, harmlessly.
 
     Parameters
     ----------
@@ -147,14 +151,25 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
     transfer : dict
         FaceTransferAPI values: mode, kernel, distanceMethod, markerNames, widths, regularization,
         polynomial, conditionNumber, parameters (dict).
+    head_motion : ndarray (F, 4, 4), optional
+        Head motion for the face's root prim (:mod:`usdface.usd.motion`); the points stay
+        head-stabilised.
     """
     require_registered()
     mesh_stage = open_stage(mesh_path, what="mesh")
     mesh_prim_path = find_mesh(mesh_stage).GetPath()
     rest = np.asarray(rest_points, dtype=np.float32)
+    root_name = mesh_stage.GetDefaultPrim().GetName()
     with AtomicLayer(path) as stage:
-        set_stage_metadata(stage, units=units, default_prim=mesh_stage.GetDefaultPrim().GetName(), rate=rate,
-                           start=start, end=start + n_frames - 1)
+        stage.GetRootLayer().subLayerPaths.append(relative_asset_path(mesh_path, path))
+        set_stage_metadata(stage, units=units, default_prim=root_name, rate=rate, start=start,
+                           end=start + n_frames - 1)
+        if head_motion is not None:
+            from .motion import author_head_motion
+
+            if len(head_motion) != n_frames:
+                raise InputError(f"animation {path}: head motion has {len(head_motion)} frames, expected {n_frames}")
+            author_head_motion(stage, Sdf.Path("/" + root_name), head_motion, start=start)
         prim = stage.OverridePrim(mesh_prim_path)
         mesh = UsdGeom.Mesh(prim)
         prim.ApplyAPI(TRANSFER_API)
