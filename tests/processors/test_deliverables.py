@@ -77,3 +77,50 @@ def test_anim_layer_alone_is_the_animated_face(shots):
     assert stage.GetStartTimeCode() == 0 and stage.GetEndTimeCode() == 299
     assert [op.GetOpName() for op in UsdGeom.Xformable(stage.GetPrimAtPath("/Face")).GetOrderedXformOps()] == \
         ["xformOp:transform"]
+
+
+def test_analysis_data_is_not_per_point_geometry(shots):
+    """DCC importers turn vertex primvars into per-point attributes: the only usdface primvar
+    left on the mesh is the one-value-per-vertex hybrid weight (usdview colours by it)."""
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(shots["head"] / "shot.usda"))
+    prim = stage.GetPrimAtPath("/Face/Geom")
+    usdface_primvars = [pv for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvars() if "usdface" in pv.GetName()]
+    assert [pv.GetName() for pv in usdface_primvars] == ["primvars:usdface:hybridWeight"]
+    assert all(pv.GetElementSize() == 1 for pv in usdface_primvars)
+    n = len(UsdGeom.Mesh(prim).GetPointsAttr().Get())
+    assert len(prim.GetAttribute("usdface:distanceMatrix:hybrid:vertexDistances").Get()) == n * 70
+
+
+def test_analysis_layers_of_usdface_0_1_still_work(shots, tmp_path, capsys):
+    """Layers written before the move (N x C as an elementSize-C vertex primvar) read, check,
+    preview and transfer the same."""
+    import shutil
+
+    from pxr import Sdf, Usd, UsdGeom
+
+    from usdface.cli import main
+    from usdface.usd.analysis_layer import read_distance_matrix
+
+    d = tmp_path / "legacy"
+    shutil.copytree(shots["head"], d)
+    layer = Sdf.Layer.FindOrOpen(str(d / "analysis.usdc"))
+    stage = Usd.Stage.Open(layer)
+    prim = stage.GetPrimAtPath("/Face/Geom")
+    attr = prim.GetAttribute("usdface:distanceMatrix:hybrid:vertexDistances")
+    values = attr.Get()
+    prim.RemoveProperty(attr.GetName())
+    UsdGeom.PrimvarsAPI(prim).CreatePrimvar("usdface:distance:hybrid", Sdf.ValueTypeNames.FloatArray,
+                                            UsdGeom.Tokens.vertex, 70).Set(values)
+    layer.Save()
+    new = read_distance_matrix(shots["head"] / "analysis.usdc")
+    old = read_distance_matrix(d / "analysis.usdc")
+    np.testing.assert_array_equal(new.vertex_to_centre, old.vertex_to_centre)
+    assert main(["check", str(d / "analysis.usdc"), "-q"]) == 0
+    assert main(["info", str(d / "analysis.usdc"), "-q"]) == 0
+    assert main(["preview", str(d / "shot.usda"), "--color", "hybrid-weight", "--size", "128", "-o",
+                 str(tmp_path / "w.png"), "-q"]) == 0
+    assert main(["transfer", "--mesh", str(d / "mesh.usdc"), "--capture", str(d / "capture.usdc"), "--binding",
+                 str(d / "binding.usda"), "--analysis", str(d / "analysis.usdc"), "-o", str(tmp_path / "a.usdc"),
+                 "-q"]) == 0

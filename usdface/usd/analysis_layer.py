@@ -67,9 +67,10 @@ def write_analysis_layer(path, matrices: list[DistanceMatrix], *, mesh_path, uni
             prim.GetAttribute(f"{ns}:centreDistances").Set(Vt.FloatArray.FromNumpy(
                 np.ascontiguousarray(m.centre_to_centre, dtype=np.float32).ravel()))
             prim.GetAttribute(f"{ns}:parameters").Set(json.dumps(m.parameters, sort_keys=True, default=float))
-            pv = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(f"usdface:distance:{inst}", Sdf.ValueTypeNames.FloatArray,
-                                                         UsdGeom.Tokens.vertex, m.vertex_to_centre.shape[1])
-            pv.Set(Vt.FloatArray.FromNumpy(np.ascontiguousarray(m.vertex_to_centre, dtype=np.float32).ravel()))
+            # a plain attribute, not a primvar: DCC importers turn vertex primvars into per-point
+            # geometry attributes (an elementSize-C primvar became all-zero junk in Blender)
+            prim.GetAttribute(f"{ns}:vertexDistances").Set(Vt.FloatArray.FromNumpy(
+                np.ascontiguousarray(m.vertex_to_centre, dtype=np.float32).ravel()))
             if m.hybrid_weight is not None:
                 w = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(HYBRID_WEIGHT_PRIMVAR, Sdf.ValueTypeNames.FloatArray,
                                                             UsdGeom.Tokens.vertex)
@@ -91,15 +92,30 @@ def read_distance_matrix(path, *, method: str | None = None, stage: Usd.Stage | 
     ns = f"usdface:distanceMatrix:{inst}"
     names = tuple(prim.GetAttribute(f"{ns}:markerNames").Get() or [])
     cons = np.asarray(prim.GetAttribute(f"{ns}:constraintVertices").Get() or [], dtype=np.int64)
-    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{inst}")
-    c = pv.GetElementSize()
-    vtc = np.asarray(pv.Get(), dtype=np.float32).reshape(-1, c)
+    c = len(names) + cons.size
+    vtc = vertex_distances(prim, inst)
+    if vtc is None:
+        raise InputError(f"analysis {path}: distance matrix {inst!r} on {prim.GetPath()} has no vertex distances")
+    vtc = vtc.reshape(-1, c)
     ctc = np.asarray(prim.GetAttribute(f"{ns}:centreDistances").Get(), dtype=np.float64).reshape(c, c)
     w = UsdGeom.PrimvarsAPI(prim).GetPrimvar(HYBRID_WEIGHT_PRIMVAR)
     return DistanceMatrix(method=prim.GetAttribute(f"{ns}:method").Get(), backend=prim.GetAttribute(f"{ns}:backend").Get(),
                           marker_names=names, constraint_vertices=cons, vertex_to_centre=vtc, centre_to_centre=ctc,
                           parameters=json.loads(prim.GetAttribute(f"{ns}:parameters").Get() or "{}"),
                           hybrid_weight=np.asarray(w.Get(), dtype=np.float32) if w and w.HasValue() else None)
+
+
+def vertex_distances(prim: Usd.Prim, instance: str) -> np.ndarray | None:
+    """The flat N x C vertex-to-centre distances of one FaceDistanceMatrixAPI instance (float32),
+    from ``vertexDistances`` or, in layers of usdface 0.1, the vertex primvar
+    ``primvars:usdface:distance:<instance>``; None when neither holds a value."""
+    attr = prim.GetAttribute(f"usdface:distanceMatrix:{instance}:vertexDistances")
+    if attr and attr.HasAuthoredValue():
+        return np.asarray(attr.Get(), dtype=np.float32)
+    legacy = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{instance}")
+    if legacy and legacy.HasValue():
+        return np.asarray(legacy.Get(), dtype=np.float32)
+    return None
 
 
 def prefetch(iterable):
