@@ -35,7 +35,8 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     """Apply the optional conditioning steps in a fixed order; returns (capture, reports).
 
     Order: trim -> marker-swap detection (reported) -> gap filling -> noise filter -> resample ->
-    neutral frame -> head stabilisation (relative to the neutral frame) -> time offset.
+    neutral frame -> head stabilisation (relative to the neutral frame) -> time offset (time code =
+    frame index from 0, or from ``start_frame``).
     """
     from ..capture import gaps, neutral as neutral_mod, swaps, timing
 
@@ -84,8 +85,12 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
         markers = None if stabilize == "auto" else list(stabilize)
         capture, report = stabilize_fn(capture, markers=markers)
         reports["stabilize"] = report.summary()
-    if start_frame is not None:
-        capture = timing.offset(capture, start_frame=start_frame)
+    # one time-code convention for every output: frame index from 0 unless --start-frame says
+    # otherwise (C3D counts from 1, TRC from its first time; the source's number is in the history)
+    target = 0 if start_frame is None else start_frame
+    if capture.start_frame != target:
+        reports["timeCodes"] = {"sourceStart": int(capture.start_frame), "start": int(target)}
+        capture = timing.offset(capture, start_frame=target)
     return capture, reports
 
 

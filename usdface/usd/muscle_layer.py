@@ -201,8 +201,12 @@ def rig_prim_paths(path, *, stage: Usd.Stage | None = None) -> tuple[str, dict]:
 
 def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, rest_points: np.ndarray, start: float,
                                  rate: float, n_frames: int, units, muscle_names, contractions: np.ndarray,
-                                 jaw: np.ndarray, prov: dict, time_codes=None, progress=None) -> str:
-    """Stream a simulated animation into a .usdc layer of overs (saved after every chunk).
+                                 jaw: np.ndarray, prov: dict, time_codes=None, progress=None, mesh=None) -> str:
+    """Stream a simulated animation into a .usdc layer (saved after every chunk).
+
+    The layer stands alone: it sublayers the rig layer (muscles) and the mesh layer it animates
+    (or, for a mesh that is not a USD layer, defines the mesh from ``mesh``, a FaceMesh), then
+    holds the time-sampled points and contractions as overs.
 
     Parameters
     ----------
@@ -235,6 +239,14 @@ def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, rest_poin
     if codes.size != n_frames:
         raise InputError(f"animation {path}: {codes.size} time codes for {n_frames} frames")
     with AtomicLayer(path) as stage:
+        sublayers = stage.GetRootLayer().subLayerPaths
+        sublayers.append(relative_asset_path(rig_path, path))
+        if mesh_stage is not None:
+            sublayers.append(relative_asset_path(mesh_path, path))
+        elif mesh is not None:
+            from .mesh_layer import author_mesh
+
+            author_mesh(stage, mesh, str(mesh_prim_path))
         set_stage_metadata(stage, units=units, default_prim=default_prim, rate=rate, start=float(codes[0]),
                            end=float(codes[-1]))
         prim = stage.OverridePrim(mesh_prim_path)
