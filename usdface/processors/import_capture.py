@@ -13,8 +13,11 @@ log = logging.getLogger("usdface")
 
 
 def load_capture(path, *, units=None, rate=None, up_axis=None) -> Capture:
-    """Read any capture usdface understands: a capture file (.ma .c3d .trc .csv) or a capture layer."""
-    if Path(path).suffix.lower() in USD_SUFFIXES:
+    """Read any capture usdface understands: a capture file (.ma .c3d .trc .csv), a capture layer,
+    or (Python API) an in-memory stage or layer holding a marker set."""
+    from ..usd.layers import is_in_memory
+
+    if is_in_memory(path) or Path(path).suffix.lower() in USD_SUFFIXES:
         from ..usd.capture_layer import read_capture_layer
 
         capture = read_capture_layer(path)
@@ -103,8 +106,10 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
     layer written before from the same file bytes, file name, options and usdface version: the
     layer is copied, byte for byte what this call would write.
     """
+    from ..usd.layers import is_in_memory
+
     out = check_output_path(output)
-    if out.suffix.lower() not in (".usdc", ".usd", ".usda"):
+    if not is_in_memory(out) and out.suffix.lower() not in (".usdc", ".usd", ".usda"):
         raise OptionError(f"-o {out}: a capture layer is a .usdc (or .usd/.usda) file")
     options = dict(units=units, rate=rate, up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
                    filter=filter, cutoff=cutoff if filter else None, trim=trim, start_frame=start_frame,

@@ -12,7 +12,8 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
 from ..errors import InputError
-from .layers import AtomicLayer, open_stage, relative_asset_path, set_provenance, set_stage_metadata
+from .layers import (add_sublayer, checkpoint, open_stage, output_layer, relative_asset_path, set_provenance,
+                     set_stage_metadata)
 from .mesh_layer import find_mesh
 from .schemas import require_registered
 
@@ -52,7 +53,7 @@ def write_analysis_layer(path, matrices: list[DistanceMatrix], *, mesh_path, uni
     require_registered()
     mesh_stage = open_stage(mesh_path, what="mesh")
     mesh_prim_path = find_mesh(mesh_stage).GetPath()
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         set_stage_metadata(stage, units=units, default_prim=mesh_stage.GetDefaultPrim().GetName())
         prim = stage.OverridePrim(mesh_prim_path)
         for m in matrices:
@@ -176,8 +177,8 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
     mesh_prim_path = find_mesh(mesh_stage).GetPath()
     rest = np.asarray(rest_points, dtype=np.float32)
     root_name = mesh_stage.GetDefaultPrim().GetName()
-    with AtomicLayer(path) as stage:
-        stage.GetRootLayer().subLayerPaths.append(relative_asset_path(mesh_path, path))
+    with output_layer(path) as stage:
+        add_sublayer(stage, mesh_path, path)
         set_stage_metadata(stage, units=units, default_prim=root_name, rate=rate, start=start,
                            end=start + n_frames - 1)
         if head_motion is not None:
@@ -204,7 +205,6 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
         mesh.GetNormalsAttr().Block() if prim.HasAttribute("normals") else mesh.CreateNormalsAttr().Block()
         points_attr = mesh.CreatePointsAttr()
         extent_attr = mesh.CreateExtentAttr()
-        layer = stage.GetRootLayer()
         written = 0
         for frames, disp in prefetch(chunks):
             pts = disp + rest[None]
@@ -215,7 +215,7 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
                 points_attr.Set(Vt.Vec3fArray.FromNumpy(pts[k]), t)
                 extent_attr.Set(Vt.Vec3fArray.FromNumpy(extents[k]), t)
             written += frames.stop - frames.start
-            layer.Save()  # appends in place: memory stays flat on long takes
+            checkpoint(stage)  # appends in place: memory stays flat on long takes
             if progress is not None:
                 progress.update(frames.stop - frames.start)
         if written != n_frames:
@@ -231,7 +231,7 @@ def write_shot_stage(path, *, layers: list, rate: float, start: float, end: floa
     With ``stabilized_capture`` the markers are shown head-stabilised (the capture's head-motion op
     is dropped from /Capture's op order), so they stay on the stabilised face animation.
     """
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         root = stage.GetRootLayer()
         for layer in layers:
             root.subLayerPaths.append(relative_asset_path(layer, path))

@@ -257,6 +257,9 @@ def check_layer(path: str | os.PathLike) -> list[Finding]:
             s = sites[0]
             site = str(s.GetPrim().GetPath()) if s.IsPrim() else (s.GetLayer().identifier if s.GetLayer() else "")
         severity, message = _SEVERITY.get(error.GetType(), "error"), error.GetMessage()
+        if "UnresolvableDependency" in error.GetIdentifier() and "'anon:" in message:
+            # an in-memory layer (Python API) resolves in this session, not through the asset resolver
+            severity, message = "warning", message + " (an in-memory layer: resolvable in this session only)"
         if image_space and "MissingMetersPerUnit" in error.GetIdentifier():
             # 2D tracks are in pixels: no metric scale exists, and a made-up one would mislead
             severity, message = "warning", message + " (a 2D image-track layer: pixels have no metric scale)"
