@@ -79,3 +79,16 @@ def test_options_objects_are_checked():
         RunOptions(max_influences=0)
     with pytest.raises(UsdFaceError, match="expected a CaptureOptions"):
         api.import_capture("x.ma", options=42)
+
+
+def test_the_readme_example_runs(repo_root, monkeypatch, capsys):
+    """The README's Python API example, run as written from the repository root."""
+    import re
+
+    text = (repo_root / "README.md").read_text()
+    section = text[text.index("## Python API"):]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    monkeypatch.chdir(repo_root)
+    exec(compile(code, "README.md", "exec"), {})
+    out = capsys.readouterr().out
+    assert "300 frames;" in out and out.strip().endswith("shot.usda")
