@@ -151,3 +151,12 @@ def test_preview_of_the_skeleton_shot_shows_the_skinned_face(shot, tmp_path):
         images[t] = cv2.imread(str(out)).astype(np.int32)
     changed = np.abs(images[frame] - images[0]).sum(axis=2) > 30
     assert changed.mean() > 0.02  # the open jaw changes a visible part of the picture
+
+
+def test_preview_reference_with_another_mesh_is_refused(shot, tmp_path, sample_assets, capsys):
+    out = tmp_path / "never.png"
+    code = main(["preview", str(shot / "shot_skel.usda"), "--frame", "10", "--color", "error", "--reference",
+                 str(sample_assets / "meshes" / "mediapipe_canonical_face_model_holes.usdc"), "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--reference" in err and "2020" in err, err
+    assert not out.exists()

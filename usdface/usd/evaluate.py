@@ -239,7 +239,11 @@ class FaceEvaluator:
             times |= _xform_samples(self._skel_prim)
             if self._anim_query:
                 times.update(self._anim_query.GetJointTransformTimeSamples())
-            times.update(self._skin.GetTimeSamples())
+            # (SkinningQuery.GetTimeSamples throws when geomBindTransform is not authored)
+            for attr in (self._skin.GetJointIndicesPrimvar().GetAttr(), self._skin.GetJointWeightsPrimvar().GetAttr(),
+                         self._skin.GetGeomBindTransformAttr()):
+                if attr:
+                    times.update(attr.GetTimeSamples())
         if self._blend:
             times.update(self._anim_query.GetBlendShapeWeightTimeSamples())
         self.time_codes = np.array(sorted(times), dtype=np.float64)
