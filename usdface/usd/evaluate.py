@@ -108,7 +108,8 @@ class FaceEvaluator:
         An open stage (a shot, or any deliverable layer opened alone).
     mesh : str or Sdf.Path, optional
         The mesh prim; by default the face mesh (:func:`usdface.usd.mesh_layer.find_mesh`: the
-        prim with usdface schemas, else the default prim's first Mesh).
+        prim with usdface schemas, else the default prim's first Mesh; in an over-only layer
+        without schemas, the first prim with authored points).
     source : str, optional
         Name used in error messages (default: the root layer's identifier).
 
