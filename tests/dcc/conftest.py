@@ -1,8 +1,8 @@
 """A real DCC in the test suite: Blender (the `bpy` wheel, `pip install ".[dcc]"`) run in a subprocess.
 
 bpy carries its own USD libraries, which must never share an interpreter with usd-core's pxr,
-so every import runs ``blender_import.py`` with this interpreter in a child process and reads
-back an .npz. Without bpy the tests skip, except under CI=true, where a missing bpy fails the run.
+so every import runs ``blender_import.py`` in a child process (this interpreter, or the one
+$USDFACE_BLENDER_PYTHON names) and reads back an .npz. Without bpy the tests skip, except under CI=true, where a missing bpy fails the run.
 """
 from __future__ import annotations
 
@@ -19,13 +19,26 @@ import pytest
 from usdface.cli import main
 
 SCRIPT = Path(__file__).with_name("blender_import.py")
-EXTRA_HINT = "bpy (Blender as a Python module) is not installed: pip install '.[dcc]' (Python 3.11)"
+EXTRA_HINT = ("bpy (Blender as a Python module) is not installed: pip install '.[dcc]' (Python 3.11), or point "
+              "USDFACE_BLENDER_PYTHON at a Python that has it")
+
+
+def blender_python() -> str | None:
+    """The Python that runs Blender: $USDFACE_BLENDER_PYTHON (a Python with bpy in an environment
+    of its own) or this interpreter, if it has bpy; None otherwise."""
+    other = os.environ.get("USDFACE_BLENDER_PYTHON")
+    if other:
+        probe = "import importlib.util, sys; sys.exit(importlib.util.find_spec('bpy') is None)"
+        ok = subprocess.run([other, "-c", probe], capture_output=True).returncode == 0
+        return other if ok else None
+    return sys.executable if importlib.util.find_spec("bpy") is not None else None  # does not import bpy
 
 
 @pytest.fixture(scope="session")
 def blender():
     """Import a USD file with Blender: ``blender(path, frames) -> BlenderImport``."""
-    if importlib.util.find_spec("bpy") is None:  # find_spec does not import it (pxr is loaded here)
+    python = blender_python()
+    if python is None:
         if os.environ.get("CI") == "true":
             pytest.fail(f"CI=true and {EXTRA_HINT}; the Blender tests must run in CI")
         pytest.skip(EXTRA_HINT)
@@ -35,7 +48,7 @@ def blender():
         key = (str(path), tuple(frames))
         if key not in cache:
             out = workdir / f"{Path(path).stem}_{len(cache)}.npz"
-            proc = subprocess.run([sys.executable, str(SCRIPT), str(path), str(out), "--frames",
+            proc = subprocess.run([python, str(SCRIPT), str(path), str(out), "--frames",
                                    *[str(int(f)) for f in frames]], capture_output=True, text=True, timeout=900)
             assert proc.returncode == 0, f"Blender import of {path} failed:\n{proc.stderr[-3000:]}"
             cache[key] = BlenderImport(out)
