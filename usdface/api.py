@@ -43,7 +43,8 @@ from dataclasses import dataclass, field
 from .errors import OptionError, UsdFaceError
 from .options import BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
 
-__all__ = ["Result", "new_stage", "import_mesh", "import_capture", "bind", "distances", "transfer", "run", "check",
+__all__ = ["Result", "new_stage", "import_mesh", "import_capture", "bind", "distances", "transfer", "run",
+           "evaluator", "check",
            "UsdFaceError", "CaptureOptions", "BindOptions", "DistanceOptions", "TransferOptions", "RunOptions"]
 
 
@@ -154,6 +155,21 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
 
     summary = run_job(mesh, capture, out_dir, options, cache=cache)
     return {k: v for k, v in summary.items() if not k.startswith("_")}
+
+
+def evaluator(source, *, mesh: str | None = None):
+    """The animated face of any deliverable (file path, layer or stage): a
+    :class:`usdface.usd.evaluate.FaceEvaluator` giving world- or mesh-space points at any time
+    code, whatever moves the face (point caches, UsdSkel skinning and blend shapes, the head
+    motion on /Face)::
+
+        ev = api.evaluator("out/jaw/shot_skel.usda")
+        points = ev.points(441)                   # (N, 3), world space, the stage's units
+    """
+    from .usd.evaluate import FaceEvaluator
+    from .usd.layers import describe, open_stage
+
+    return FaceEvaluator(open_stage(source, what="file"), mesh=mesh, source=describe(source))
 
 
 def check(target) -> list:

@@ -46,6 +46,14 @@ def test_in_memory_pipeline_matches_the_command_line(in_memory, sample_assets, t
         np.testing.assert_allclose(np.array(ha), np.array(hb), atol=1e-9)
 
 
+def test_the_evaluator_reads_what_the_api_wrote(in_memory):
+    stage, _, _, _ = in_memory
+    ev = api.evaluator(stage)
+    assert ev.n_points == 2020 and len(ev.time_codes) == 200
+    moved = np.linalg.norm(ev.points(120, space="mesh") - ev.rest_points(), axis=1).max()
+    assert 0.5 < moved < 5.0  # the jaw opens a few cm
+
+
 def test_results_check_clean(in_memory):
     stage, _, mesh, capture = in_memory
     for target in (stage, mesh, capture):
