@@ -308,6 +308,8 @@ class FaceEvaluator:
                 m = rigid * m
             if undeformed:
                 m = self._skin.GetGeomBindTransform(tc) * m
+        elif space == "mesh":
+            return _IDENTITY  # points are authored in mesh space: exactly, not W * W^-1
         else:
             m = self._world_gf(self.prim, tc)
         if space == "mesh":
