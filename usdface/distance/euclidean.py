@@ -15,6 +15,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError, OptionError, ResourceError
+from ..resources import available_memory  # noqa: F401  (re-exported)
 
 __all__ = [
     "DistanceWarning",
@@ -40,25 +41,6 @@ def warn(message: str) -> None:
 # ----------------------------------------------------------------------------------------------
 # memory
 # ----------------------------------------------------------------------------------------------
-
-def available_memory() -> int | None:
-    """Bytes of memory available to this process now, or None when unknown.
-
-    Reads ``MemAvailable`` from ``/proc/meminfo`` (Linux); falls back to
-    ``os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")``.
-    """
-    try:
-        with open("/proc/meminfo", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
-
 
 def _fmt_bytes(n: float) -> str:
     for unit in ("B", "KB", "MB", "GB", "TB"):

@@ -98,7 +98,7 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
     layer written before from the same file bytes, file name, options and usdface version: the
     layer is copied, byte for byte what this call would write.
     """
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"input": input})
     if out.suffix.lower() not in (".usdc", ".usd", ".usda"):
         raise OptionError(f"-o {out}: a capture layer is a .usdc (or .usd/.usda) file")
     options = dict(units=units, rate=rate, up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
