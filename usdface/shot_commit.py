@@ -56,7 +56,7 @@ from pathlib import Path
 
 from .errors import LockedError
 from .fileutil import (HOST_TAG, file_digest, format_bytes, fsync_dir, fsync_file, inject_fault, is_temporary_name,
-                       owner_is_dead, same_file_problems, write_error)
+                       owner_is_dead, same_file_problems, temporary_owner, write_error)
 
 log = logging.getLogger("usdface")
 
@@ -292,7 +292,8 @@ def leftovers(folder) -> list[Path]:
 def tidy(folder, *, keep=(), max_age: float = TEMPORARY_MAX_AGE) -> dict:
     """Complete interrupted commits and remove temporaries whose owner is dead (module docstring).
 
-    Call it holding the folder's lock (a run does, at its start). Returns what was done:
+    Call it holding the folder's lock (a run does, at its start, before making its own work folder;
+    ``keep`` names entries to leave alone). Returns what was done:
     ``{"completed": [run ids], "removed": [names], "bytes": freed, "kept": [names of live owners']}``.
     """
     folder = Path(folder)
@@ -306,6 +307,8 @@ def tidy(folder, *, keep=(), max_age: float = TEMPORARY_MAX_AGE) -> dict:
         except OSError:
             continue
         dead = owner_is_dead(path.name, path.lstat().st_mtime)
+        if path.name.startswith(RUN_FOLDER_PREFIX) and temporary_owner(path.name) == (os.getpid(), HOST_TAG):
+            dead = True  # this process's own earlier run (it failed): the caller holds the lock, so not in use
         if dead is False or (dead is None and now - mtime < max_age):
             report["kept"].append(path.name)
             continue
