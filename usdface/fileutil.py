@@ -325,7 +325,7 @@ def failure_cause(path: str | os.PathLike, exc: BaseException | None = None, *, 
         return probe
     cause = _CAUSES.get(number) if number is not None else None
     if cause is None:
-        detail = getattr(exc, "strerror", None) or _short(str(exc or "")) or "unknown error"
+        detail = getattr(exc, "strerror", None) or _short(str(exc or "")) or "the write failed without a reason given"
         return detail
     if number in (errno.ENOSPC, getattr(errno, "EDQUOT", -1)):
         free = _free_bytes(folder)

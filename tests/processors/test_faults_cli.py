@@ -173,7 +173,9 @@ def _start(argv, **env) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ, **env))
 
 
-def test_sigterm_is_handled_like_ctrl_c(old_shot, tmp_path):
+@pytest.mark.parametrize("sig,code,said", [(signal.SIGTERM, 143, "stopped by SIGTERM; partial work removed"),
+                                           (signal.SIGINT, 130, "interrupted; partial work removed")])
+def test_sigterm_is_handled_like_ctrl_c(old_shot, tmp_path, sig, code, said):
     out = tmp_path / "shot"
     shutil.copytree(old_shot, out)
     before = _digests(out)
@@ -181,10 +183,10 @@ def test_sigterm_is_handled_like_ctrl_c(old_shot, tmp_path):
     deadline = time.time() + 60
     while not any(x.name.startswith(".usdface-run-") for x in out.iterdir()) and time.time() < deadline:
         time.sleep(0.05)
-    p.send_signal(signal.SIGTERM)
+    p.send_signal(sig)
     _, err = p.communicate(timeout=60)
-    assert p.returncode == 143, err
-    assert "stopped by SIGTERM; partial work removed" in _one_line_error(err, "run")
+    assert p.returncode == code, err
+    assert said in _one_line_error(err, "run")
     assert _digests(out) == before and leftovers(out) == [] and not (out / LOCK_NAME).exists()
 
 

@@ -126,7 +126,7 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     version and inputs whose sha256 equal the files in OUTDIR (the chain was not edited since).
     """
     from ..processors.run import OUTPUT_FILES, run_options, run_provenance
-    from ..shot_commit import verify_shot
+    from ..shot_commit import read_shot_record, verify_shot
 
     out = Path(shot.output)
     try:
@@ -142,6 +142,7 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     problems = verify_shot(out / "shot.usda")
     if problems:
         return False, f"mixed or incomplete shot: {problems[0]}"
+    recorded = read_shot_record(out / "shot.usda") is not None
     opts = {k: v for k, v in shot.options.items()}
     capture = shot.capture
     if not Path(capture).is_file():
@@ -152,6 +153,8 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
         old = summary.get("provenance") or {}
         what = [k for k in ("usdfaceVersion", "options", "inputs") if old.get(k) != expected.get(k)]
         return False, f"provenance differs ({', '.join(what) or 'absent'})"
+    if recorded:  # every file is the one committed with the shot, and a commit holds one run's files
+        return True, "outputs current"
     from ..usd.layers import file_digest
 
     digests = {}

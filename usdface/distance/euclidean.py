@@ -15,6 +15,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError, OptionError, ResourceError
+from ..fileutil import format_bytes
 from ..resources import available_memory  # noqa: F401  (re-exported)
 
 __all__ = [
@@ -43,11 +44,7 @@ def warn(message: str) -> None:
 # ----------------------------------------------------------------------------------------------
 
 def _fmt_bytes(n: float) -> str:
-    for unit in ("B", "KB", "MB", "GB", "TB"):
-        if abs(n) < 1000 or unit == "TB":
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
-        n /= 1000.0
-    return f"{n:.1f} TB"  # pragma: no cover
+    return format_bytes(n).replace("kB", "KB")
 
 
 def check_matrix_memory(n_rows: int, n_cols: int, dtype=np.float64, *, what: str = "distance matrix",
