@@ -206,3 +206,35 @@ def test_sigkill_at_each_commit_step(two_shots, tmp_path, step):
     assert not [f for f in check_layer(out / "shot.usda") if f.severity == "error"]
     assert (step != "written") == bool(report["completed"] or step == "cleanup")
     assert not (out / MARKER_NAME).exists()
+
+
+def test_folder_and_nested_deliverables_are_committed_and_checked(tmp_path):
+    """Other deliverables (a playblast's frames in a folder, a file in a subfolder) commit like layers."""
+    from pxr import Sdf
+
+    from usdface.shot_commit import shot_record, verify_shot
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "playblast").mkdir()
+    (out / "playblast" / "old.0001.png").write_bytes(b"old frame")
+    s = ShotSession(out, "r2")
+    work = s.open()
+    (work / "playblast").mkdir()
+    for i in range(3):
+        (work / "playblast" / f"f.{i:04d}.png").write_bytes(bytes([i]) * 10)
+    (work / "reports").mkdir()
+    (work / "reports" / "curves.csv").write_text("frame,x\n0,1\n")
+    files = ["playblast", "reports/curves.csv", "summary.json", "shot.usda"]
+    (work / "summary.json").write_text(json.dumps({"runId": "r2", "files": files}))
+    record = shot_record(work, files, "r2")
+    layer = Sdf.Layer.CreateNew(str(work / "shot.usda"))
+    layer.customLayerData = {"usdface": {"shot": json.dumps(record)}}
+    layer.Save()
+    s.commit(files)
+    s.close()
+    assert sorted(p.name for p in (out / "playblast").iterdir()) == ["f.0000.png", "f.0001.png", "f.0002.png"]
+    assert (out / "reports" / "curves.csv").read_text().startswith("frame")
+    assert leftovers(out) == [] and verify_shot(out / "shot.usda") == []
+    (out / "playblast" / "f.0001.png").write_bytes(b"another run's frame")
+    assert verify_shot(out / "shot.usda") == ["playblast is not the file committed with this shot (its bytes differ)"]

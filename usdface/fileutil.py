@@ -53,6 +53,17 @@ def file_digest(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
+def path_digest(path: str | os.PathLike) -> str:
+    """sha256 of a file, or of a folder (its files' relative names and sha256, in sorted order)."""
+    p = Path(path)
+    if not p.is_dir():
+        return file_digest(p)
+    h = hashlib.sha256(b"usdface-folder/1\0")
+    for f in sorted(q for q in p.rglob("*") if q.is_file()):
+        h.update(f"{f.relative_to(p).as_posix()}\0{file_digest(f)}\0".encode())
+    return h.hexdigest()
+
+
 def fsync_file(path: str | os.PathLike) -> None:
     """Flush a file's data to disk (before renaming it over a good one)."""
     fd = os.open(path, os.O_RDONLY)

@@ -55,8 +55,8 @@ import time
 from pathlib import Path
 
 from .errors import LockedError
-from .fileutil import (HOST_TAG, file_digest, format_bytes, fsync_dir, fsync_file, inject_fault, is_temporary_name,
-                       owner_is_dead, same_file_problems, temporary_owner, write_error)
+from .fileutil import (HOST_TAG, format_bytes, fsync_dir, fsync_file, inject_fault, is_temporary_name,
+                       owner_is_dead, path_digest, same_file_problems, temporary_owner, write_error)
 
 log = logging.getLogger("usdface")
 
@@ -218,28 +218,49 @@ def _apply(work: Path, folder: Path, plan: dict, *, hooks: bool = False) -> None
     stages = [f for f in order if is_shot_stage(f)] + [f for f in plan.get("stale", []) if is_shot_stage(f)]
     for name in stages:  # old stages out first: none may compose a half-replaced folder
         if (work / name).exists() or name in plan.get("stale", []):
-            with contextlib.suppress(FileNotFoundError):
-                (folder / name).unlink()
+            _remove(folder / name)
     fsync_dir(folder)
     if hooks:
         _step("unlink-shots")
     if plan.get("stale"):
         for name in plan["stale"]:
-            with contextlib.suppress(FileNotFoundError):
-                (folder / name).unlink()
+            _remove(folder / name)
         if hooks:
             _step("remove-stale")
     for name in order:
         if is_shot_stage(name) and not any(is_shot_stage(n) for n in order[:order.index(name)]):
             fsync_dir(folder)  # every other file is in place before the first shot stage appears
-        src = work / name
+        src, dst = work / name, folder / name
         if src.exists():
             if hooks:
-                inject_fault("commit", folder / name)
-            os.replace(src, folder / name)
+                inject_fault("commit", dst)
+            dst.parent.mkdir(parents=True, exist_ok=True)  # a deliverable may live in a subfolder
+            if dst.is_dir() and not dst.is_symlink():
+                # a folder deliverable (frames of a playblast): the old one goes into the work folder first
+                os.replace(dst, work / f".replaced-{name.replace('/', '_')}-{secrets.token_hex(2)}")
+            os.replace(src, dst)
         if hooks:
             _step(f"rename:{name}")
     fsync_dir(folder)
+
+
+def _remove(path: Path) -> None:
+    """Remove a file or a folder; nothing when it is not there."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+
+
+def _fsync_tree(path: Path) -> None:
+    if path.is_dir():
+        for root, _, names in os.walk(path):
+            for n in names:
+                fsync_file(os.path.join(root, n))
+        fsync_dir(path)
+    else:
+        fsync_file(path)
 
 
 def roll_forward(work: Path, folder: Path) -> str | None:
@@ -402,7 +423,7 @@ def shot_record(folder, files, run: str) -> dict:
             entries[name] = {}
             continue
         path = folder / name
-        entry = {"sha256": file_digest(path)}
+        entry = {"sha256": path_digest(path)}
         if path.suffix.lower() in USD_SUFFIXES:
             entry["id"] = provenance_id(layer_provenance(path))
         entries[name] = entry
@@ -440,11 +461,11 @@ def verify_shot(stage_path) -> list[str]:
         path = folder / name
         if name == stage_path.name:
             continue
-        if not path.is_file():
+        if not path.exists():
             problems.append(f"{name} is missing")
             continue
         if "sha256" in entry:
-            if file_digest(path) != entry["sha256"]:
+            if path_digest(path) != entry["sha256"]:
                 what = "its bytes differ"
                 if path.suffix.lower() in USD_SUFFIXES:
                     pid = provenance_id(layer_provenance(path))
@@ -458,10 +479,10 @@ def verify_shot(stage_path) -> list[str]:
                 other = "unreadable"
             if other != run:
                 problems.append(f"{name} is from run {other}")
-        elif is_shot_stage(name):
-            other = (read_shot_record(path) or {}).get("runId")
-            if other != run:
-                problems.append(f"{name} is from run {other}")
+        elif is_shot_stage(name):  # committed with this one; a stage with its own record names its run
+            other = read_shot_record(path)
+            if other is not None and other.get("runId") != run:
+                problems.append(f"{name} is from run {other.get('runId')}")
     return problems
 
 
@@ -535,17 +556,17 @@ class ShotSession:
         inputs = {k: v for k, v in self.inputs.items() if v is not None}
         stale = []
         for name in old:
-            if not isinstance(name, str) or name in files or os.sep in name or name.startswith("."):
+            if not isinstance(name, str) or name in files or name.startswith((".", "/")) or ".." in name.split("/"):
                 continue
             path = self.folder / name
-            if path.is_file() and not same_file_problems({"old": path}, inputs):
+            if path.exists() and not same_file_problems({"old": path}, inputs):
                 stale.append(name)
         return stale
 
     def commit(self, files) -> None:
         """Put ``files`` (all written in the work folder) in place as a whole (module docstring)."""
         order = commit_order(files)
-        missing = [f for f in order if not (self.work / f).is_file()]
+        missing = [f for f in order if not (self.work / f).exists()]
         if missing:
             raise RuntimeError(f"commit: {', '.join(missing)} not written")  # a bug, not a user error
         plan = {"runId": self.run_id, "files": order, "stale": self._stale(order), "pid": os.getpid(),
@@ -553,7 +574,7 @@ class ShotSession:
         with _signals_deferred():
             try:
                 for name in order:
-                    fsync_file(self.work / name)
+                    _fsync_tree(self.work / name)
                 _step("written")
                 marker = self.work / MARKER_NAME
                 with open(marker, "w", encoding="utf-8") as f:

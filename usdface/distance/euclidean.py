@@ -9,7 +9,6 @@ All distances are in mesh units.
 """
 from __future__ import annotations
 
-import os
 import warnings
 
 import numpy as np
