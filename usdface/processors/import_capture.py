@@ -108,7 +108,7 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
     """
     from ..usd.layers import is_in_memory
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"input": input})
     if not is_in_memory(out) and out.suffix.lower() not in (".usdc", ".usd", ".usda"):
         raise OptionError(f"-o {out}: a capture layer is a .usdc (or .usd/.usda) file")
     options = dict(units=units, rate=rate, up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
