@@ -38,6 +38,11 @@ class ResourceError(UsdFaceError):
     """Not enough memory or disk for the requested work; the message says the estimate."""
 
 
+class DependencyError(UsdFaceError):
+    """An optional dependency (or a part of it, such as an encoder) is missing; the message names
+    the extra or package to install."""
+
+
 class SchemaRegistrationError(UsdFaceError):
     """usdface's USD schemas could not be registered in this process."""
 

@@ -28,6 +28,7 @@ import os
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +46,13 @@ SHADINGS = ("smooth", "flat", "unlit")
 BACK_TINT = (0.42, 0.33, 0.48)
 
 
+def _compiled():
+    """The numba kernels module, or None without numba (imported on first use: numba is slow to import)."""
+    from . import _kernels
+
+    return _kernels if _kernels.AVAILABLE else None
+
+
 def _cv2():
     try:
         import cv2
@@ -59,6 +67,10 @@ def _cv2():
 def rasterize(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
               max_candidates: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:
     """Z-buffered scan conversion of triangles given in image coordinates.
+
+    Runs the compiled kernel of :mod:`usdface.preview._kernels` when numba is installed (same
+    result, bit for bit, as the vectorised numpy version :func:`_rasterize_numpy`, which it
+    falls back to).
 
     Parameters
     ----------
@@ -88,9 +100,24 @@ def rasterize(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
     triangle, the three edge half-planes give the covered x-interval, and only covered pixels are
     generated. A pixel is covered when its centre lies inside the triangle or on an edge; edge
     crossings are computed in a canonical form, so triangles sharing an edge leave neither cracks
-    nor gaps. Depth ties go to either triangle. Cost is proportional to the number of covered
+    nor gaps. Depth ties go to the later triangle. Cost is proportional to the number of covered
     pixels (with overdraw) plus the number of triangle rows.
     """
+    kernels = _compiled()
+    if kernels is not None:
+        w, h = (int(s) for s in size)
+        tri_index = np.full(h * w, -1, dtype=np.int32)
+        zbuf = np.full(h * w, np.inf)
+        tri = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
+        kernels.rasterize_kernel(np.ascontiguousarray(xy, dtype=np.float64),
+                                  np.ascontiguousarray(zkey, dtype=np.float64), tri, w, h, tri_index, zbuf)
+        return tri_index.reshape(h, w), zbuf.reshape(h, w)
+    return _rasterize_numpy(xy, zkey, triangles, size, max_candidates=max_candidates)
+
+
+def _rasterize_numpy(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
+                     max_candidates: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rasterize` in vectorised numpy (the reference of the compiled kernel)."""
     w, h = (int(s) for s in size)
     xy = np.asarray(xy, dtype=np.float64)
     z = np.asarray(zkey, dtype=np.float64)
@@ -309,11 +336,25 @@ def point_visibility(points: np.ndarray, buffers: Buffers, *, tolerance: float, 
     visible = np.zeros(pts.shape[0], dtype=bool)
     idx = np.flatnonzero(in_view)
     if idx.size:
-        ref = _neighbourhood_max(buffers.depth, radius) if _ref is None else _ref
         j = np.floor(xy[idx, 0]).astype(np.int64)
         i = np.floor(xy[idx, 1]).astype(np.int64)
-        visible[idx] = depth[idx] <= ref[i, j] + tolerance
+        near = _ref[i, j] if _ref is not None else _window_max(buffers.depth, i, j, radius)
+        visible[idx] = depth[idx] <= near + tolerance
     return in_view, visible
+
+
+def _window_max(depth: np.ndarray, i: np.ndarray, j: np.ndarray, radius: int) -> np.ndarray:
+    """:func:`_neighbourhood_max` at the pixels (i, j) only (a few points: no full-image pass)."""
+    h, w = depth.shape
+    d = np.where(np.isfinite(depth), depth, np.finfo(np.float32).max)
+    best = np.full(i.shape, -np.inf)
+    for di in range(-radius, radius + 1):
+        for dj in range(-radius, radius + 1):
+            ii, jj = i + di, j + dj
+            ok = (ii >= 0) & (ii < h) & (jj >= 0) & (jj < w)
+            best = np.where(ok, np.maximum(best, d[np.clip(ii, 0, h - 1), np.clip(jj, 0, w - 1)]), best)
+    # the full-image version works in float32: round the same way so both agree exactly
+    return best.astype(np.float32).astype(np.float64)
 
 
 # ================================================================================================
@@ -423,10 +464,12 @@ _HALF = _normalize(_KEY + np.array([0.0, 0.0, -1.0]))
 _KEY32, _FILL32, _HALF32 = (v.astype(np.float32) for v in (_KEY, _FILL, _HALF))
 
 
-def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarray, *, shading: str,
-           specular: float, scalar_t: np.ndarray | None = None,
-           lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Shaded colours (K, 3) uint8 BGR of the K covered pixels, and their flat indices.
+def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarray, out: np.ndarray, *,
+           shading: str, specular: float, scalar_t: np.ndarray | None = None,
+           lut: np.ndarray | None = None, compiled: bool | None = None) -> None:
+    """Shade the covered pixels of ``out`` ((H, W, 3) uint8 BGR, written in place).
+
+    ``compiled``: use the numba kernel (default: when numba is installed) or the numpy reference.
 
     Per-triangle data (barycentric gradients, per-corner normal and colour) is packed once into a
     contiguous float32 block, so each pixel needs a single row gather.
@@ -438,10 +481,13 @@ def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarra
     """
     h, w = buf.triangle.shape
     flat_tri = buf.triangle.ravel()
-    pix = np.flatnonzero(flat_tri >= 0)
-    if pix.size == 0:
-        return np.zeros((0, 3), np.uint8), pix
-    t = flat_tri[pix]
+    kernels = _compiled() if compiled is None or compiled else None
+    compiled = kernels is not None
+    if not compiled:
+        pix = np.flatnonzero(flat_tri >= 0)
+        if pix.size == 0:
+            return
+        t = flat_tri[pix]
     # --- per triangle ---------------------------------------------------------------------------
     v = buf.xy[tris]  # (T, 3, 2)
     e1 = v[:, 1] - v[:, 0]
@@ -478,15 +524,20 @@ def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarra
     # (C, T) so that the per-pixel gather gives (C, K) with contiguous rows (a (K, C) block would
     # be read column by column with a cache miss per element)
     block = np.ascontiguousarray(np.concatenate(parts, axis=1).T, dtype=np.float32)
-    # --- per pixel, in cache-sized chunks -------------------------------------------------------
-    out = np.empty((pix.size, 3), np.uint8)
     lut32 = None if lut is None else np.ascontiguousarray(lut.T, dtype=np.float32)
+    flat_out = out.reshape(-1, 3)
+    if compiled:  # the kernel reads one triangle's row at a time: (T, C) layout
+        kernels.shade_kernel(np.ascontiguousarray(block.T), np.ascontiguousarray(flat_tri), w, 1 if shading == "unlit" else 0,
+                              float(specular), bool(buf.camera.perspective), scalar_t is not None,
+                              np.zeros((3, 1), np.float32) if lut32 is None else lut32, _NAN32[:, 0],
+                              _TINT32[:, 0], _KEY32, _FILL32, _HALF32, flat_out)
+        return
+    # --- per pixel, in cache-sized chunks -------------------------------------------------------
     step = 1 << 15
     for k in range(0, pix.size, step):
-        out[k:k + step] = _shade_pixels(block, t[k:k + step], pix[k:k + step], w, shading=shading,
-                                        specular=specular, perspective=buf.camera.perspective,
-                                        scalar=scalar_t is not None, lut=lut32)
-    return out, pix
+        flat_out[pix[k:k + step]] = _shade_pixels(block, t[k:k + step], pix[k:k + step], w, shading=shading,
+                                                  specular=specular, perspective=buf.camera.perspective,
+                                                  scalar=scalar_t is not None, lut=lut32)
 
 
 _NAN32 = np.asarray(NAN_COLOR, dtype=np.float32)[:, None]
@@ -553,15 +604,23 @@ def _shade_pixels(block, t, pix, w, *, shading, specular, perspective, scalar, l
 
 
 def _background(size, background) -> np.ndarray:
-    """(H, W, 3) uint8 BGR background."""
-    w, h = size
-    if background is None:
+    """(H, W, 3) uint8 BGR background (a fresh copy of a cached image: every frame of a movie
+    starts from the same one, and filling 3-channel pixels costs more than copying them)."""
+    rgb = None if background is None else _rgb(background, "background")
+    return _background_cached(int(size[0]), int(size[1]), rgb).copy()
+
+
+@lru_cache(maxsize=8)
+def _background_cached(w: int, h: int, rgb) -> np.ndarray:
+    if rgb is None:
         top, bottom = (np.asarray(c[::-1], dtype=np.float32) for c in BACKGROUND)
         t = np.linspace(0.0, 1.0, h, dtype=np.float32)[:, None]
         col = (top * (1 - t) + bottom * t + 0.5).astype(np.uint8)
-        return np.ascontiguousarray(np.broadcast_to(col[:, None, :], (h, w, 3)))
-    out = np.empty((h, w, 3), np.uint8)
-    out[:] = _bgr(_rgb(background, "background"))
+        out = np.ascontiguousarray(np.repeat(col[:, None, :], w, axis=1))
+    else:
+        out = np.empty((h, w, 3), np.uint8)
+        out[:] = _bgr(rgb)
+    out.flags.writeable = False
     return out
 
 
@@ -602,15 +661,73 @@ _FONT = 0  # cv2.FONT_HERSHEY_SIMPLEX
 
 def _text(img, text: str, org, scale: float, rgb, *, thickness: int = 1, outline: bool = True,
           align: str = "left") -> None:
-    """Anti-aliased text with a dark outline; org is the baseline start (or end if align=right)."""
+    """Anti-aliased text with a dark outline; org is the baseline start (or end if align=right).
+
+    Text drawn again (legends, names on every frame of a movie) is pasted from a cached sprite
+    instead of being rasterised again (Hershey glyphs with anti-aliasing cost ~0.1 ms a line).
+    """
     cv2 = _cv2()
     x, y = int(round(org[0])), int(round(org[1]))
     if align == "right":
         (tw, _), _ = cv2.getTextSize(text, _FONT, scale, thickness)
         x -= tw
+    key = (text, round(float(scale), 6), tuple(int(c) for c in rgb), int(thickness), bool(outline))
+    if key in _TEXT_SEEN:
+        base, gain, (ox, oy) = _text_sprite(*key)
+        _paste(img, base, gain, x - ox, y - oy)
+        return
+    if len(_TEXT_SEEN) > 4096:
+        _TEXT_SEEN.clear()
+    _TEXT_SEEN.add(key)
+    _put_text(img, text, (x, y), scale, rgb, thickness=thickness, outline=outline)
+
+
+def _put_text(img, text, org, scale, rgb, *, thickness, outline) -> None:
+    cv2 = _cv2()
     if outline:
-        cv2.putText(img, text, (x, y), _FONT, scale, (12, 12, 12), thickness + 2, cv2.LINE_AA)
-    cv2.putText(img, text, (x, y), _FONT, scale, _bgr(rgb), thickness, cv2.LINE_AA)
+        cv2.putText(img, text, org, _FONT, scale, (12, 12, 12), thickness + 2, cv2.LINE_AA)
+    cv2.putText(img, text, org, _FONT, scale, _bgr(rgb), thickness, cv2.LINE_AA)
+
+
+_TEXT_SEEN: set = set()
+
+
+@lru_cache(maxsize=2048)
+def _text_sprite(text, scale, rgb, thickness, outline):
+    """(base, gain, origin) of a text drawn over black and over white: anti-aliased drawing is a
+    per-pixel blend ``out = base + gain * under`` (gain = (white - black) / 255), so pasting it
+    gives what drawing on the image gives (within a few levels of 255 at glyph edges)."""
+    cv2 = _cv2()
+    t = thickness + 2 if outline else thickness
+    (tw, th), bl = cv2.getTextSize(text, _FONT, scale, t)
+    pad = t + 2
+    w, h = tw + 2 * pad, th + bl + 2 * pad
+    origin = (pad, pad + th)
+    black = np.zeros((h, w, 3), np.uint8)
+    white = np.full((h, w, 3), 255, np.uint8)
+    for canvas in (black, white):
+        _put_text(canvas, text, origin, scale, rgb, thickness=thickness, outline=outline)
+    base = black.astype(np.float32)
+    gain = (white.astype(np.float32) - base) / 255.0
+    rows = np.flatnonzero((gain < 0.999).any(axis=(1, 2)))
+    cols = np.flatnonzero((gain < 0.999).any(axis=(0, 2)))
+    if rows.size == 0:
+        return base[:0, :0], gain[:0, :0], origin
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    return (base[r0:r1, c0:c1].copy(), gain[r0:r1, c0:c1].copy(), (origin[0] - c0, origin[1] - r0))
+
+
+def _paste(img, base, gain, x, y) -> None:
+    """Blend a text sprite into ``img`` with its top-left corner at (x, y), clipped to the image."""
+    h, w = img.shape[:2]
+    sh, sw = base.shape[:2]
+    x0, y0 = max(x, 0), max(y, 0)
+    x1, y1 = min(x + sw, w), min(y + sh, h)
+    if x1 <= x0 or y1 <= y0:
+        return
+    sl = (slice(y0 - y, y1 - y), slice(x0 - x, x1 - x))
+    under = img[y0:y1, x0:x1].astype(np.float32)
+    img[y0:y1, x0:x1] = np.clip(base[sl] + gain[sl] * under + 0.5, 0, 255).astype(np.uint8)
 
 
 def _dim(rgb, k: float = 0.5, toward=(110, 110, 110)) -> tuple[int, int, int]:
@@ -898,9 +1015,8 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     cam_hi = camera.resized(ss) if ss > 1 else camera
     buf = render_buffers(points, tris, cam_hi)
     out = _background(cam_hi.size, background)
-    bgr, pix = _shade(buf, points, tris, colors, shading=shading, specular=0.10 if scalars is None else 0.04,
-                      scalar_t=scalar_t, lut=lut)
-    out.reshape(-1, 3)[pix] = bgr
+    _shade(buf, points, tris, colors, out, shading=shading, specular=0.10 if scalars is None else 0.04,
+           scalar_t=scalar_t, lut=lut)
     ref = None
     if edges is not None:
         ref = _neighbourhood_max(buf.depth, 1)
@@ -916,13 +1032,9 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     font = 0.34 * s
     sets = []
     if markers is not None:
-        if ref is None:
-            ref = _neighbourhood_max(buf.depth, 1)
         iv, vis = point_visibility(markers, buf, tolerance=tol, _ref=ref)
         sets.append(("circle", markers, iv, vis, marker_labels, marker_rgb, marker_name))
     if extra is not None:
-        if ref is None:
-            ref = _neighbourhood_max(buf.depth, 1)
         iv, vis = point_visibility(extra, buf, tolerance=tol, _ref=ref)
         sets.insert(0, ("diamond", extra, iv, vis, extra_labels, extra_rgb, extra_name))
     if links:
