@@ -350,6 +350,7 @@ PLUGIN_COMMANDS = (
     "usdface.processors.acquisition",
     "usdface.processors.tissue",
     "usdface.processors.playblast",
+    "usdface.processors.report",
 )
 
 

@@ -216,6 +216,23 @@ class ShotReader:
         tv, bc = np.asarray(b.triangle_vertices), np.asarray(b.barycentrics)
         return np.einsum("fmkd,mk->fmd", face_points[:, tv], bc)
 
+    def transfer_settings(self) -> dict:
+        """Every ``usdface:transfer:*`` value on the face mesh (FaceTransferAPI), JSON strings decoded."""
+        out = {}
+        for attr in self._prim.GetAttributes():
+            name = attr.GetName()
+            if name.startswith("usdface:transfer:") and attr.HasAuthoredValue():
+                v = attr.Get()
+                if isinstance(v, str) and v[:1] in "[{":
+                    try:
+                        v = json.loads(v)
+                    except ValueError:
+                        pass
+                elif hasattr(v, "__len__") and not isinstance(v, str):
+                    v = list(v)
+                out[name.split(":", 2)[2]] = v
+        return out
+
     def layer_data(self) -> dict:
         """The root layer's usdface provenance (customLayerData), decoded."""
         data = dict(self._stage.GetRootLayer().customLayerData.get("usdface", {}))
