@@ -109,31 +109,27 @@ def place_labels(anchors, sizes, *, image_size, gap: float = 3.0, obstacles=None
     crowd = (d < 2.5 * np.median(sizes[:, 1])).sum(axis=1)
     order = np.lexsort((anchors[:, 0], anchors[:, 1], -crowd))
     taken = np.zeros((0, 4))
+    n_ang = _ANGLES.size
     for i in order:
         a, size = anchors[i], sizes[i]
         if not np.isfinite(a).all():
             continue
         step = max(size[1] * 0.6, 2.0)
         dists = np.concatenate([[gap], gap + step * np.arange(1, int(max_distance / step) + 2)])
-        for dist in dists:
-            cand = _box_at(a, size, _ANGLES, dist)
-            inside = (cand[:, 0] >= 0) & (cand[:, 1] >= 0) & (cand[:, 2] <= w_img) & (cand[:, 3] <= h_img)
-            if not inside.any():
-                if dist > max_distance:
-                    break
-                continue
-            free = inside.copy()
-            if taken.shape[0]:
-                free &= ~boxes_overlap(cand, taken, pad).any(axis=1)
-            if obstacles.shape[0]:
-                free &= ~boxes_overlap(cand, obstacles, 0.0).any(axis=1)
+        for b0 in range(0, dists.size, 12):  # rings in blocks: one vectorised test per block
+            ring = dists[b0:b0 + 12]
+            cand = _box_at(a, size, np.tile(_ANGLES, ring.size), np.repeat(ring, n_ang))
+            free = (cand[:, 0] >= 0) & (cand[:, 1] >= 0) & (cand[:, 2] <= w_img) & (cand[:, 3] <= h_img)
+            if free.any() and taken.shape[0]:
+                free[free] &= ~boxes_overlap(cand[free], taken, pad).any(axis=1)
+            if free.any() and obstacles.shape[0]:
+                free[free] &= ~boxes_overlap(cand[free], obstacles, 0.0).any(axis=1)
             hit = np.flatnonzero(free)
             if hit.size:
-                boxes[i] = cand[hit[0]]
+                j = hit[0]
+                boxes[i] = cand[j]
                 placed[i] = True
-                leader[i] = dist > leader_after
+                leader[i] = ring[j // n_ang] > leader_after
                 taken = np.vstack([taken, boxes[i][None]])
-                break
-            if dist > max_distance:
                 break
     return LabelPlacement(boxes, placed, leader)

@@ -34,7 +34,8 @@ from ._common import _bgr, _compiled, _cv2, _rgb  # noqa: F401  (_cv2: the modul
 from .camera import Camera
 from .colormap import CLAY, apply_colormap, colormap_lut, region_palette as _region_palette, \
     scalar_range as _scalar_range
-from .overlays import _colorbar, _draw_points, _legend, _overlay_scale, _text  # noqa: F401  (_text: sheet, burnin)
+from .overlays import (_colorbar, _draw_points, _legend, _overlay_scale, _text,  # noqa: F401  (_text: sheet, burnin)
+                       MIN_LABEL_FONT, draw_point_labels, glyph_radius, label_font, place_point_labels)
 from .png import encode_png, write_png  # noqa: F401  (re-exported)
 from .shading import BACKGROUND, _background, _shade, _wire_mask, vertex_normals  # noqa: F401
 
@@ -438,7 +439,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
                 edges: np.ndarray | None = None, wire_color=(18, 18, 22), wire_alpha: float = 0.5,
                 title: str = "", shading: str = "smooth", background=None, supersample: int = 2,
                 legend: bool = True, occlusion_tolerance: float | None = None,
-                marker_radius: float | None = None) -> np.ndarray:
+                marker_radius: float | None = None, label_info: dict | None = None) -> np.ndarray:
     """Render a preview image of a triangle mesh.
 
     Parameters
@@ -457,7 +458,9 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     region_colors : dict {name: vertex indices or Region} or list of Region, optional
         Vertices of each region get the fixed palette colour of the region (mouth red-ish, eyes
         blue-ish, outer border grey, others distinct; see :func:`usdface.preview.colormap.region_palette`);
-        later regions paint over earlier ones; other vertices are clay. A legend lists them.
+        later regions paint over earlier ones; other vertices are clay. Loop regions (outer border,
+        mouth, eyes: one vertex wide) also tint two rings of vertices around them (weights
+        :data:`BAND_WEIGHTS`) so they show at any size. A legend lists them.
     region_palette : dict {name: (r, g, b)}, optional
         Overrides of region colours (0..255).
     scalars : ndarray, shape (N,), optional
@@ -499,7 +502,15 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         World units a marker may lie behind the surface and still count as visible; default 1%
         of the mesh's bounding-box diagonal.
     marker_radius : float, optional
-        Dot radius in pixels; default scales with the image (4 px at 512, at least 3.5).
+        Dot radius in pixels; default scales with the image (4 px at 512, at least 3.5) and
+        shrinks to 0.35 of the median spacing of the points on screen (at least 1.5 px), so
+        glyphs never swamp a small picture.
+    label_info : dict, optional
+        Filled with the label layout (``boxes`` (K, 4) x0 y0 x1 y1, ``placed``, ``leader``,
+        ``anchors``, ``texts``, ``reserved`` boxes of glyphs, legends, colour bar and title,
+        ``radius``): labels are placed by :mod:`usdface.preview.labels` so that no two boxes
+        overlap, none covers a glyph, legend, colour bar or title, and all lie inside the image;
+        labels away from their point get a leader line.
 
     Returns
     -------
@@ -560,9 +571,15 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         pal = _region_palette([it[0] for it in items], [it[1] for it in items])
         for name, rgb in (region_palette or {}).items():
             pal[name] = _rgb(rgb, f"region_palette[{name!r}]")
-        for name, _role, idx in items:
+        for name, role, idx in items:
             if idx.size and (not np.issubdtype(idx.dtype, np.integer) or idx.min() < 0 or idx.max() >= n):
                 raise MeshError(f"preview: region {name!r} has vertex indices outside 0..{n - 1}")
+            if idx.size and (role in LOOP_ROLES or (role is None and name in LOOP_NAMES)):
+                # a loop of vertices (hole or border) is one vertex wide: shade a band around it
+                rgb = np.asarray(pal[name], dtype=np.float64) / 255
+                near, weight = _band(points, idx.astype(np.int64), BAND_WIDTH * diag)
+                colors[near] = colors[near] * (1 - weight[:, None]) + rgb * weight[:, None]
+        for name, _role, idx in items:
             colors[idx.astype(np.int64)] = np.asarray(pal[name], dtype=np.float64) / 255
             legend_entries.append(("swatch", pal[name], f"{name} ({np.unique(idx).size})"))
     elif scalars is not None:
@@ -594,8 +611,6 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     out = np.ascontiguousarray(out)
 
     # --- overlays at the final resolution -------------------------------------------------------
-    radius = max(4.0 * s, 3.5) if marker_radius is None else float(marker_radius)
-    font = 0.34 * s
     sets = []
     if markers is not None:
         iv, vis = point_visibility(markers, buf, tolerance=tol, _ref=ref)
@@ -603,6 +618,11 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     if extra is not None:
         iv, vis = point_visibility(extra, buf, tolerance=tol, _ref=ref)
         sets.insert(0, ("diamond", extra, iv, vis, extra_labels, extra_rgb, extra_name))
+    projected = [camera.project(pts)[0] for _, pts, *_ in sets]
+    if marker_radius is not None:
+        radius = float(marker_radius)
+    else:
+        radius = glyph_radius([xy[iv] for xy, (_, _, iv, *_) in zip(projected, sets)], (w, h), scale=s)
     if links:
         a_xy, _ = camera.project(markers)
         b_xy, _ = camera.project(extra)
@@ -612,10 +632,15 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
                 a = tuple(int(round((c - 0.5) * f)) for c in p)
                 b = tuple(int(round((c - 0.5) * f)) for c in q)
                 cv2.line(out, a, b, (230, 230, 230), 1, cv2.LINE_AA, 4)
-    point_legend = []
-    for shape, pts, iv, vis, labels, prgb, pname in sets:
-        xy, _ = camera.project(pts)
-        _draw_points(out, xy, iv, vis, labels, prgb, radius=radius, shape=shape, font=font)
+    point_legend, label_entries, glyph_boxes = [], [], []
+    for (shape, pts, iv, vis, labels, prgb, pname), xy in zip(sets, projected):
+        _draw_points(out, xy, iv, vis, prgb, radius=radius, shape=shape)
+        g = radius * (1.25 if shape == "diamond" else 1.0)
+        for m in np.flatnonzero(iv):
+            glyph_boxes.append((xy[m, 0] - 0.5 - 0.8 * g, xy[m, 1] - 0.5 - 0.8 * g,
+                                xy[m, 0] - 0.5 + 0.8 * g, xy[m, 1] - 0.5 + 0.8 * g))
+            if labels is not None and labels[m]:
+                label_entries.append((xy[m], labels[m], prgb, bool(vis[m])))
         nvis, nin = int(vis.sum()), int(iv.sum())
         text = f"{pname}: {nvis} visible"
         if nin - nvis:
@@ -623,15 +648,57 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         if pts.shape[0] - nin:
             text += f", {pts.shape[0] - nin} off"
         point_legend.append(("circle" if shape == "circle" else "diamond", prgb, text))
+    reserved = list(glyph_boxes)
     if lut is not None and legend:
-        _colorbar(out, lut, lo, hi, scalar_label, s, has_nan)
+        reserved.append(_colorbar(out, lut, lo, hi, scalar_label, s, has_nan))
     if legend:
-        _legend(out, legend_entries, s, corner="bottom-left")
-        _legend(out, point_legend[::-1], s, corner="bottom-right" if legend_entries else "bottom-left")
+        for box in (_legend(out, legend_entries, s, corner="bottom-left"),
+                    _legend(out, point_legend[::-1], s, corner="bottom-right" if legend_entries else "bottom-left")):
+            if box is not None:
+                reserved.append(box)
     if title:
         for k, line in enumerate(str(title).splitlines()):
-            _text(out, line, (10 * s, (22 + 18 * k) * s), (0.55 if k == 0 else 0.42) * s, (245, 245, 245))
+            size = (0.55 if k == 0 else 0.42) * s
+            org = (10 * s, (22 + 18 * k) * s)
+            _text(out, line, org, size, (245, 245, 245))
+            (tw, th), bl = cv2.getTextSize(line, 0, size, 3)
+            reserved.append((org[0] - 2, org[1] - th - 2, org[0] + tw + 2, org[1] + bl + 2))
+    if label_entries:
+        font = label_font(s)
+        obstacles = np.array(reserved, dtype=np.float64).reshape(-1, 4)
+        while True:  # a crowded small picture: smaller text before leaving labels out
+            placement, _, bases = place_point_labels((w, h), label_entries, radius=radius, font=font,
+                                                     obstacles=obstacles)
+            if not placement.n_dropped or font <= MIN_LABEL_FONT * 0.8:
+                break
+            font = max(font * 0.88, MIN_LABEL_FONT * 0.8)
+        draw_point_labels(out, label_entries, placement, bases, radius=radius, font=font)
+        if label_info is not None:
+            label_info.update(boxes=placement.boxes, placed=placement.placed, leader=placement.leader,
+                              anchors=np.array([e[0] for e in label_entries]) - 0.5, texts=[e[1] for e in label_entries],
+                              reserved=np.array(reserved, dtype=np.float64).reshape(-1, 4), radius=radius)
+    elif label_info is not None:
+        label_info.update(boxes=np.zeros((0, 4)), placed=np.zeros(0, bool), leader=np.zeros(0, bool),
+                          anchors=np.zeros((0, 2)), texts=[], reserved=np.array(reserved).reshape(-1, 4),
+                          radius=radius)
     return out
+
+
+#: region roles (and names, for plain dicts) that are loops of vertices, drawn with a band
+LOOP_ROLES = ("outerBorder", "mouth", "eye")
+LOOP_NAMES = ("outerBorder", "mouth", "leftEye", "rightEye")
+#: width of the band drawn around a loop region, as a fraction of the mesh's bounding-box diagonal
+BAND_WIDTH = 0.035
+
+
+def _band(points: np.ndarray, idx: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices within ``width`` of the vertex set ``idx`` and their band weight (0.85 at the
+    loop, fading to 0 at ``width``)."""
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(points[idx]).query(points, distance_upper_bound=width)
+    near = np.flatnonzero(np.isfinite(d))
+    return near, 0.85 * (1.0 - d[near] / width) ** 0.6
 
 
 def render_face(mesh, *, regions=None, wireframe: bool = False, **kwargs) -> np.ndarray:
