@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..preview.burnin import fit_into, hstack_panels, placeholder
+from ..preview.burnin import burn_in, fit_into, hstack_panels, placeholder, timecode
 from .panel import ShotPanel
 
 __all__ = ["Compositor", "FrameJob", "default_workers", "render_in_order"]
@@ -29,6 +29,7 @@ class FrameJob:
     panels: list = field(default_factory=list)   # per shot panel: dict(time, points, markers, bound, reference, note)
     video: np.ndarray | None = None              # BGR frame of the source video
     video_note: str = ""
+    video_index: int | None = None               # its frame number in the video
 
 
 @dataclass
@@ -37,6 +38,9 @@ class Compositor:
 
     panels: list                 # ShotPanel per shot
     video_size: tuple | None = None  # (w, h) of the video panel, or None
+    video_name: str = ""
+    video_rate: float = 0.0
+    burnin: bool = True
 
     def __call__(self, job: FrameJob) -> np.ndarray:
         images = []
@@ -50,9 +54,14 @@ class Compositor:
                                            note=data.get("note", "")))
         if self.video_size is not None:
             if job.video is None:
-                images.append(placeholder(self.video_size, job.video_note or "no video frame"))
+                img = placeholder(self.video_size, job.video_note or "no video frame")
             else:
-                images.append(fit_into(job.video, self.video_size))
+                img = fit_into(job.video, self.video_size)
+            if self.burnin and job.video_index is not None:
+                burn_in(img, [self.video_name, "source video"],
+                        [f"video frame {job.video_index}", f"{timecode(job.video_index, self.video_rate)}  "
+                                                           f"{self.video_rate:g} fps"])
+            images.append(img)
         return images[0] if len(images) == 1 else hstack_panels(images)
 
 

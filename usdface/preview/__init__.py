@@ -18,10 +18,11 @@ Main entry points
 """
 from .camera import TURNTABLE_SWING, VIEW_CHOICES, VIEWS, Camera, view_yaw
 from .colormap import COLORMAPS, apply_colormap, colormap_lut, region_palette
+from .png import encode_jpeg
 from .render import (Buffers, encode_png, fit_camera, point_visibility, polygon_edges, rasterize, render_buffers, render_face,
                      render_mesh, vertex_normals, write_png)
 from .sheet import contact_sheet, render_sequence
 
-__all__ = ["COLORMAPS", "TURNTABLE_SWING", "VIEW_CHOICES", "VIEWS", "Buffers", "Camera", "apply_colormap", "colormap_lut", "contact_sheet", "encode_png", "fit_camera",
+__all__ = ["COLORMAPS", "TURNTABLE_SWING", "VIEW_CHOICES", "VIEWS", "Buffers", "Camera", "apply_colormap", "colormap_lut", "contact_sheet", "encode_jpeg", "encode_png", "fit_camera",
            "point_visibility", "polygon_edges", "rasterize", "region_palette", "render_buffers",
            "render_face", "render_mesh", "render_sequence", "vertex_normals", "view_yaw", "write_png"]

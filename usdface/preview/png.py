@@ -11,6 +11,16 @@ from ..errors import InputError, OptionError, ResourceError
 from ._common import _cv2
 
 
+def encode_jpeg(image: np.ndarray, quality: int = 88) -> bytes:
+    """JPEG bytes of a BGR uint8 image (pictures embedded in reports: about 5x smaller than PNG
+    on shaded renders)."""
+    cv2 = _cv2()
+    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(image), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise OptionError(f"cannot encode an image of shape {np.shape(image)} as JPEG")
+    return buf.tobytes()
+
+
 def encode_png(image: np.ndarray) -> bytes:
     """PNG bytes of a BGR (OpenCV order) uint8 image (for embedding in HTML)."""
     cv2 = _cv2()

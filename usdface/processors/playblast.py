@@ -276,7 +276,9 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
         if missing:
             notes.append(f"--video: {missing} playblast frame(s) past the video's {vid.n_frames} frames show "
                          "'no video frame'")
-    compositor = Compositor(panels=panels, video_size=(pw[1], h) if video is not None else None)
+    compositor = Compositor(panels=panels, video_size=(pw[1], h) if video is not None else None,
+                            video_name=Path(video).name if video is not None else "",
+                            video_rate=vid.rate if vid is not None else 0.0, burnin=burnin)
 
     def jobs():
         b_iter = other_frames.at(alignment.times) if other is not None else None
@@ -301,6 +303,7 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
                                            bound=None if b[3] is None else b[3][k], note="held" if held else ""))
                 if v_iter is not None:
                     job.video, job.video_note = next(v_iter)
+                    job.video_index = int(vmap[0][n])
                 yield job
 
     meta = {"title": reader.name, "comment": f"usdface playblast of {reader.path.name}"}

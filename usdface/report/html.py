@@ -110,8 +110,9 @@ class Page:
             self.note(caption)
         return fid
 
-    def picture(self, png: bytes, caption: str = "", *, alt: str = "", width: int | None = None) -> str:
-        src = "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+    def picture(self, data: bytes, caption: str = "", *, alt: str = "", width: int | None = None) -> str:
+        kind = "png" if data[:8] == b"\x89PNG\r\n\x1a\n" else "jpeg"
+        src = f"data:image/{kind};base64," + base64.b64encode(data).decode("ascii")
         w = f' style="max-width:{int(width)}px"' if width else ""
         return (f'<figure><img class="pic" src="{src}" alt="{esc(alt or caption)}"{w}>'
                 f"<figcaption>{esc(caption)}</figcaption></figure>")

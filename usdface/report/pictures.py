@@ -1,10 +1,10 @@
 """The report's pictures: a contact sheet of the take, the binding on the face, maps of the largest
-displacement and of the hybrid weight, rendered by the preview renderer (PNG bytes)."""
+displacement and of the hybrid weight, rendered by the preview renderer (JPEG bytes)."""
 from __future__ import annotations
 
 import numpy as np
 
-from ..preview import contact_sheet, encode_png, fit_camera, render_mesh
+from ..preview import contact_sheet, encode_jpeg, fit_camera, render_mesh
 
 __all__ = ["binding_picture", "contact_frames", "contact_sheet_picture", "map_picture", "thumbnail"]
 
@@ -36,7 +36,7 @@ def contact_sheet_picture(d, reader, *, cell: int = 300, count: int = 8) -> tupl
     peak = int(np.argmax(d.displacement[:, 3])) if d.displacement is not None else -1
     caps = [f"frame {int(t)}" + ("  (largest)" if i == peak else "") for i, t in zip(idx, times)]
     sheet = contact_sheet(cells, caps, columns=4, title=f"{d.name}: displacement from rest, one colour scale")
-    return encode_png(sheet), [int(t) for t in times]
+    return encode_jpeg(sheet), [int(t) for t in times]
 
 
 def binding_picture(d, reader, *, size: int = 900) -> bytes | None:
@@ -47,14 +47,14 @@ def binding_picture(d, reader, *, size: int = 900) -> bytes | None:
     img = render_mesh(reader.rest_points, reader.triangles, size=(size, size), region_colors=reader.regions or None,
                       extra_points=bound[0], extra_labels=list(reader.marker_names) or None,
                       extra_name="bound points", title=f"{d.name}: binding", supersample=2)
-    return encode_png(img)
+    return encode_jpeg(img)
 
 
 def map_picture(reader, values, *, label: str, title: str, size: int = 520, vrange=None) -> bytes:
     """The rest face coloured by a per-vertex value (largest displacement, hybrid weight...)."""
     img = render_mesh(reader.rest_points, reader.triangles, size=(size, size), scalars=values,
                       scalar_range=vrange, scalar_label=label, title=title, supersample=2)
-    return encode_png(img)
+    return encode_jpeg(img)
 
 
 def thumbnail(d, reader, *, size: int = 200) -> bytes:
@@ -63,4 +63,4 @@ def thumbnail(d, reader, *, size: int = 200) -> bytes:
     pts = reader.face_points([d.frames[k]])[0]
     disp = np.linalg.norm(pts - reader.rest_points, axis=1)
     img = render_mesh(pts, reader.triangles, size=(size, size), scalars=disp, legend=False, supersample=2)
-    return encode_png(img)
+    return encode_jpeg(img)

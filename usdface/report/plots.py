@@ -92,6 +92,7 @@ def marker_paths_figure(d) -> dict:
     lay = _layout("Marker paths, front view (motion x4 around each neutral position)", f"x ({d.units})",
                   f"y ({d.units})", height=520)
     lay["yaxis"]["scaleanchor"] = "x"
+    lay["xaxis"]["constrain"] = "domain"  # equal scales by narrowing the plot, not widening the range
     return {"key": "marker-paths", "data": data, "layout": lay}
 
 
@@ -159,6 +160,7 @@ def amplification_figure(d, bound: float) -> dict | None:
     xs = ["0 (exact)" if lam == 0 else f"{lam:g}" for lam in lams]
     colors = ["#e15759" if (used is not None and abs(lam - float(used)) < 1e-15) else "#4e79a7" for lam in lams]
     data = [{"type": "bar", "x": xs, "y": compact([tried[lam] for lam in lams]), "marker": {"color": colors},
+             "width": [0.5] * len(xs),
              "name": "amplification", "hovertemplate": "lambda %{x}: %{y}x<extra></extra>"}]
     lay = _layout("Transfer amplification per ridge term tried (red: used)", "regularisation lambda",
                   "amplification (x)", xaxis={"type": "category"})

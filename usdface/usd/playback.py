@@ -31,7 +31,7 @@ def _world_matrices(prim: Usd.Prim, times) -> np.ndarray:
     cache = UsdGeom.XformCache()
     out = np.empty((len(times), 4, 4))
     for i, t in enumerate(times):
-        cache.SetTime(Usd.TimeCode(t))
+        cache.SetTime(Usd.TimeCode(float(t)))
         out[i] = np.asarray(cache.GetLocalToWorldTransform(prim), dtype=np.float64)
     return out
 
