@@ -54,10 +54,11 @@ def rate_fraction(rate: float) -> Fraction:
     r = float(rate)
     if not (np.isfinite(r) and 0 < r <= 1000):
         raise OptionError(f"movie frame rate {rate}: expected 0 < rate <= 1000")
-    for den in (1, 1001):
-        num = round(r * den)
-        if abs(num / den - r) < 1e-6 * r:
-            return Fraction(num, den)
+    if abs(round(r) - r) < 1e-6 * r:
+        return Fraction(round(r))
+    num = round(r * 1.001)  # NTSC-style rates written to 2-3 decimals: 29.97, 59.94, 23.976
+    if num % 1 == 0 and abs(num * 1000 / 1001 - r) < 1e-4 * r:
+        return Fraction(num * 1000, 1001)
     return Fraction(r).limit_denominator(100000)
 
 

@@ -71,7 +71,7 @@ def align_shots(times: np.ndarray, rate: float, other_start: int, other_end: int
         raise OptionError(f"shot rates must be positive; got {rate} and {other_rate}")
     t = np.asarray(times, dtype=np.float64)
     # exact when the rates are equal (no float round trip through seconds)
-    want = t if rate == other_rate else np.floor(t / rate * other_rate + 0.5)
+    want = t if rate == other_rate else np.floor(t * (other_rate / rate) + 0.5 + 1e-9)
     want = want.astype(np.int64)
     shown = np.clip(want, int(other_start), int(other_end))
     return Alignment(times=shown, held=shown != want)
@@ -120,7 +120,8 @@ def video_frame_indices(times: np.ndarray, timing: VideoTiming, *, video_rate: f
     if rate == source_rate == float(video_rate):
         index = k + int(timing.trim_start)
     else:
-        seconds = timing.trim_start / source_rate + k / rate
-        index = np.floor(seconds * float(video_rate) + 0.5).astype(np.int64)
+        # in video frames directly (not through seconds), nearest frame, halves rounded up
+        pos = timing.trim_start * (float(video_rate) / source_rate) + k * (float(video_rate) / rate)
+        index = np.floor(pos + 0.5 + 1e-9).astype(np.int64)
     present = (index >= 0) & (index < int(video_frames))
     return index, present

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InputError, OptionError
 
-__all__ = ["parse_size", "playblast", "register_cli", "video_timing"]
+__all__ = ["parse_size", "playblast", "playblast_stills", "register_cli", "video_timing"]
 
 #: frames read from USD per chunk
 CHUNK = 64
@@ -185,32 +185,89 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
         The summary (``_text`` lines for the terminal).
     """
     from ..media.movie import MovieWriter, movie_info, require_encoder
-    from ..playblast.panel import PanelStyle, ShotPanel
-    from ..playblast.pipeline import Compositor, FrameJob, default_workers, render_in_order
-    from ..playblast.timing import align_shots, shot_times, video_frame_indices
+    from ..playblast.pipeline import default_workers, render_in_order
     from ..progress import progress
-    from ..usd.playback import ShotReader
 
     started = _time.perf_counter()
     output = Path(output)
     if output.suffix.lower() != ".mp4":
         raise OptionError(f"-o {output}: a playblast is an .mp4 movie (H.264)")
-    if compare is not None and video is not None:
-        raise OptionError("--compare and --video both take the right half of the frame: give one")
     for label, p in (("shot", shot), ("--compare", compare), ("--video", video), ("--reference", reference)):
         if p is not None and Path(p).resolve() == output.resolve():
             raise OptionError(f"-o {output}: is the {label} input; the movie would overwrite it")
+    w, h = parse_size(size)
+    require_encoder()  # a missing encoder fails before any work
+    _probe_folder(output)
+    workers = default_workers() if workers is None else int(workers)
+    if workers < 0:
+        raise OptionError(f"--workers {workers}: expected 0 (this thread) or more")
+    plan = _plan(shot, frame_range=frame_range, size=(w, h), view=view, color=color, markers=markers, bound=bound,
+                 labels=labels, burnin=burnin, legend=legend, compare=compare, video=video, reference=reference,
+                 supersample=supersample, turntable_period=turntable_period, projection=projection)
+    reader, times, notes, alignment, vmap = plan.reader, plan.times, plan.notes, plan.alignment, plan.vmap
+    meta = {"title": reader.name, "comment": f"usdface playblast of {reader.path.name}"}
+    bar = progress(total=len(times), desc="playblast", unit="frame")
+    with MovieWriter(output, (w, h), reader.rate, crf=crf, preset=preset, metadata=meta) as writer:
+        try:
+            for img in render_in_order(plan.jobs(), plan.compositor, workers=workers, mode=parallel):
+                writer.write(img)
+                bar.update(1)
+        finally:
+            bar.close()
+    seconds = _time.perf_counter() - started
+    info = movie_info(output)
+    summary = {
+        "output": str(output), "shot": str(shot), "frames": len(times), "first": int(times[0]),
+        "last": int(times[-1]), "rate": reader.rate, "size": [w, h], "view": view, "color": color,
+        "compare": None if compare is None else str(compare), "video": None if video is None else str(video),
+        "held": 0 if alignment is None else alignment.n_held, "workers": workers, "parallel": parallel,
+        "seconds": round(seconds, 3), "framesPerSecond": round(len(times) / seconds, 2), "movie": info,
+        "notes": notes,
+    }
+    if vmap is not None:
+        summary["videoFrames"] = {"first": int(vmap[0][0]), "last": int(vmap[0][-1]),
+                                  "trimStart": vmap[2].trim_start, "recorded": vmap[2].recorded}
+    summary["_text"] = [f"wrote {output}: {len(times)} frames ({int(times[0])}..{int(times[-1])}) at "
+                        f"{reader.rate:g} fps, {w}x{h} H.264, {info['frames']} frames in the file; "
+                        f"{seconds:.1f} s ({len(times) / seconds:.1f} frames/s, {workers} worker(s))"] + \
+        [f"  {n}" for n in notes]
+    return summary
+
+
+
+def playblast_stills(shot, times, **options) -> list:
+    """The movie frames at the time codes ``times`` exactly as :func:`playblast` with the same
+    ``options`` draws them (same framing, colour range, burn-in), as BGR images, without encoding."""
+    options = dict(options)
+    options.setdefault("size", (960, 540))
+    plan = _plan(shot, **options)
+    want = {int(t) for t in times}
+    missing = want - {int(t) for t in plan.times}
+    if missing:
+        raise OptionError(f"stills: time code(s) {sorted(missing)} are not in the playblast's range "
+                          f"{int(plan.times[0])}..{int(plan.times[-1])}")
+    return [plan.compositor(job) for job in plan.jobs() if int(plan.times[job.index]) in want]
+
+
+def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regions", markers=False, bound=False,
+          labels=False, burnin=True, legend=True, compare=None, video=None, reference=None, supersample=1,
+          turntable_period=6.0, projection="orthographic", **_ignored):
+    """Read the shot(s), fit the framing and colour range, and prepare the frame jobs."""
+    from types import SimpleNamespace
+
+    from ..playblast.panel import PanelStyle, ShotPanel
+    from ..playblast.pipeline import Compositor, FrameJob
+    from ..playblast.timing import align_shots, shot_times, video_frame_indices
+    from ..usd.playback import ShotReader
+
+    if compare is not None and video is not None:
+        raise OptionError("--compare and --video both take the right half of the frame: give one")
     w, h = parse_size(size)
     style = PanelStyle(color=color, markers=markers, bound=bound, labels=labels, legend=legend, burnin=burnin,
                        supersample=int(supersample), view=view, projection=projection,
                        turntable_period=float(turntable_period))
     if color == "error" and reference is None:
         raise OptionError("--color error needs --reference SHOT (the points to compare against)")
-    require_encoder()  # a missing encoder fails before any work
-    workers = default_workers() if workers is None else int(workers)
-    if workers < 0:
-        raise OptionError(f"--workers {workers}: expected 0 (this thread) or more")
-
     reader = ShotReader.open(shot)
     if not reader.animated:
         raise InputError(f"shot {shot}: the face has no animation (no time-sampled points, no skinning); "
@@ -306,33 +363,24 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
                     job.video_index = int(vmap[0][n])
                 yield job
 
-    meta = {"title": reader.name, "comment": f"usdface playblast of {reader.path.name}"}
-    bar = progress(total=len(times), desc="playblast", unit="frame")
-    with MovieWriter(output, (w, h), reader.rate, crf=crf, preset=preset, metadata=meta) as writer:
-        try:
-            for img in render_in_order(jobs(), compositor, workers=workers, mode=parallel):
-                writer.write(img)
-                bar.update(1)
-        finally:
-            bar.close()
-    seconds = _time.perf_counter() - started
-    info = movie_info(output)
-    summary = {
-        "output": str(output), "shot": str(shot), "frames": len(times), "first": int(times[0]),
-        "last": int(times[-1]), "rate": reader.rate, "size": [w, h], "view": view, "color": color,
-        "compare": None if compare is None else str(compare), "video": None if video is None else str(video),
-        "held": 0 if alignment is None else alignment.n_held, "workers": workers, "parallel": parallel,
-        "seconds": round(seconds, 3), "framesPerSecond": round(len(times) / seconds, 2), "movie": info,
-        "notes": notes,
-    }
-    if vmap is not None:
-        summary["videoFrames"] = {"first": int(vmap[0][0]), "last": int(vmap[0][-1]),
-                                  "trimStart": vmap[2].trim_start, "recorded": vmap[2].recorded}
-    summary["_text"] = [f"wrote {output}: {len(times)} frames ({int(times[0])}..{int(times[-1])}) at "
-                        f"{reader.rate:g} fps, {w}x{h} H.264, {info['frames']} frames in the file; "
-                        f"{seconds:.1f} s ({len(times) / seconds:.1f} frames/s, {workers} worker(s))"] + \
-        [f"  {n}" for n in notes]
-    return summary
+    return SimpleNamespace(reader=reader, times=times, notes=notes, alignment=alignment, vmap=vmap,
+                           compositor=compositor, jobs=jobs)
+
+
+def _probe_folder(output: Path) -> None:
+    """An output folder that is missing or cannot be written fails now, before the shot is read."""
+    import os
+    import tempfile
+
+    folder = output.parent if str(output.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"cannot write movie {output}: folder {folder} does not exist")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{output.stem}.probe-", dir=folder)
+    except OSError as exc:
+        raise InputError(f"cannot write movie {output}: folder {folder}: {exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def _video_frames(vid, index, present):

@@ -248,8 +248,8 @@ class ShotReader:
 def _find_face_mesh(stage: Usd.Stage) -> Usd.Prim | None:
     """The face mesh (usdface schemas first, then the default prim's first Mesh, then any Mesh)."""
     every = list(Usd.PrimRange.Stage(stage, Usd.PrimAllPrimsPredicate))
-    for prim in every:
-        if prim.IsA(UsdGeom.Mesh) and any(s.startswith(MESH_SCHEMAS) for s in prim.GetAppliedSchemas()):
+    for prim in every:  # (an untyped over with usdface's schemas: the caller says it has no topology)
+        if any(s.startswith(MESH_SCHEMAS) for s in prim.GetAppliedSchemas()):
             return prim
     root = stage.GetDefaultPrim()
     if root:
