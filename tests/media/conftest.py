@@ -110,6 +110,12 @@ def browser():
     shutil.rmtree(profile, ignore_errors=True)
 
 
+@pytest.fixture(scope="session")
+def page_opener():
+    """open_page(driver, path) -> {"state", "console", "requests"}."""
+    return open_page
+
+
 def open_page(drv, path, *, settle: float = 1.0) -> dict:
     """Open ``path`` (file://), wait until the plots are drawn; return console messages and
     every request the page made."""

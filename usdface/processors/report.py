@@ -191,6 +191,7 @@ def batch_report(summary, output=None, *, playblasts=False, workers=None) -> dic
             if shot.get("status") in ("ok", "skipped") and shot.get("output"):
                 try:
                     d = gather_shot(shot["output"])
+                    d.name = shot.get("name") or d.name  # the batch's name tells meshes apart
                     reader = ShotReader.open(d.shot)
                     png = thumbnail(d, reader)
                     thumb = f'<a href="#{anchor}">' + page.picture(png, "", alt=f"{shot['name']} thumbnail",
@@ -210,11 +211,22 @@ def batch_report(summary, output=None, *, playblasts=False, workers=None) -> dic
                          "summary.json</a>")
             status = shot.get("status", "")
             cls = "ok" if status == "ok" else ("err" if status == "failed" else "")
-            steps = ", ".join(f"{n} {v:.2f}" for n, v in (shot.get("steps") or {}).items() if isinstance(v, (int, float)))
-            cache = ", ".join(f"{n}: {v}" for n, v in (shot.get("cache") or {}).items())
+            step_times = shot.get("steps") or {}
+            cache_status = shot.get("cache") or {}
+            seconds = shot.get("seconds") or 0.0
+            earlier = ""
+            if status == "skipped" and d is not None:  # resumed: the run that made the shot timed it
+                run_steps = d.summary.get("steps", {})
+                step_times = {n: (v or {}).get("seconds") for n, v in run_steps.items()}
+                cache_status = {n: v["cache"]["status"] for n, v in run_steps.items() if (v or {}).get("cache")}
+                seconds = d.summary.get("seconds") or 0.0
+                earlier = " (earlier run)"
+            steps = ", ".join(f"{n} {v:.2f}" for n, v in step_times.items() if isinstance(v, (int, float)))
+            cache = ", ".join(f"{n}: {v}" for n, v in cache_status.items())
             name = f'<a href="#{anchor}">{esc(shot.get("name", ""))}</a>' if d is not None else esc(shot.get("name", ""))
+            frames = shot.get("frames") or (d.n_frames if d is not None else "")
             rows.append((thumb, name + "<br>" + links, f'<span class="{cls}">{esc(status)}</span>',
-                         f"{shot.get('seconds') or 0:.1f}", esc(steps), esc(cache), esc(shot.get("frames", "")),
+                         f"{seconds:.1f}{earlier}", esc(steps), esc(cache), esc(frames),
                          f'<span class="err">{esc(shot.get("error") or "")}</span>'))
         page.heading("Shots", 2)
         page.table(("", "shot", "status", "seconds", "step seconds", "cache", "frames", "error"), rows,

@@ -23,7 +23,7 @@ font-size:13px}.card b{display:block;font-size:16px}
 table{border-collapse:collapse;font-size:12.5px;margin:6px 0}td,th{border-bottom:1px solid #e3e3e8;padding:3px 8px;
 text-align:left;vertical-align:top}th{background:#f4f6f9}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .warn{background:#fff4e0;border-left:4px solid #f2b134;padding:6px 10px;font-size:13px;margin:6px 0}
-.err{color:#b00020}.ok{color:#2a7d2a}img.pic{max-width:100%;border:1px solid #ddd;border-radius:4px}
+td figure{margin:0}.err{color:#b00020}.ok{color:#2a7d2a}img.pic{max-width:100%;border:1px solid #ddd;border-radius:4px}
 .pics{display:flex;flex-wrap:wrap;gap:12px;align-items:flex-start}.pics figure{margin:0}
 figcaption{font-size:12px;color:#555}video{max-width:100%;background:#000;border-radius:4px}
 .plot{width:100%;min-height:300px}details summary{cursor:pointer;font-size:13px;color:#345}
