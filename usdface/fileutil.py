@@ -36,3 +36,26 @@ def fsync_dir(path: str | os.PathLike) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def probe_writable_folder(path: str | os.PathLike, *, what: str) -> Path:
+    """The folder of the output ``path``, checked to exist and to take a new file (a temporary file
+    is created and removed: permission bits do not tell, root ignores them and read-only mounts
+    refuse anyway). Raises InputError naming ``what`` ("movie", "report"...) and the folder."""
+    import tempfile
+
+    from .errors import InputError
+
+    out = Path(path)
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"cannot write {what} {out}: folder {folder} does not exist")
+    if out.is_dir():
+        raise InputError(f"cannot write {what} {out}: it is a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{out.stem}.probe-", dir=folder)
+    except OSError as exc:
+        raise InputError(f"cannot write {what} {out}: folder {folder}: {exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(probe)
+    return folder

@@ -48,3 +48,30 @@ def test_video_frames_through_trim_start_frame_and_resample():
     t = VideoTiming(trim_start=70, source_rate=30.0, rate=30.0, shot_start=0)
     idx, ok = video_frame_indices(np.arange(0, 4), t, video_rate=30.0, video_frames=72)
     assert idx.tolist() == [70, 71, 72, 73] and ok.tolist() == [True, True, False, False]
+
+
+def test_one_view_list_and_the_turntable():
+    from usdface.cli import build_parser
+    from usdface.playblast.panel import PanelStyle, ShotPanel
+    from usdface.preview import VIEW_CHOICES, Camera, view_yaw
+
+    assert {"front", "three-quarter", "side", "turntable"} <= set(VIEW_CHOICES)
+    # preview and playblast offer the same list
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    for cmd in ("preview", "playblast"):
+        view = next(a for a in sub.choices[cmd]._actions if a.dest == "view")
+        assert tuple(view.choices) == VIEW_CHOICES
+    assert view_yaw("three-quarter") == 35.0 and view_yaw("side") == 90.0 and view_yaw("turntable") == 0.0
+    assert view_yaw("turntable", 0.25) == pytest.approx(75.0) and view_yaw("turntable", 0.75) == pytest.approx(-75.0)
+    # a turntable panel turns with time, at one scale (the face does not zoom in and out)
+    g = np.stack(np.meshgrid(np.linspace(-1, 1, 5), np.linspace(-1, 1, 5)), -1).reshape(-1, 2)
+    pts = np.c_[g, 0.3 * (1 - (g ** 2).sum(1))]
+    tris = np.array([[0, 1, 5]])
+    panel = ShotPanel(name="t", method="", rate=24.0, triangles=tris, rest_points=pts, size=(200, 200),
+                      style=PanelStyle(view="turntable", turntable_period=2.0), frame_points=pts[None])
+    cams = [panel.camera_at(t) for t in (0, 12, 24, 36)]  # phases 0, 0.25, 0.5, 0.75
+    fwd = [c.forward for c in cams]
+    np.testing.assert_allclose(fwd[0], Camera.view_rotation("front")[2], atol=1e-9)
+    np.testing.assert_allclose(fwd[1], Camera.view_rotation(75.0)[2], atol=1e-9)
+    np.testing.assert_allclose(fwd[3], Camera.view_rotation(-75.0)[2], atol=1e-9)
+    assert len({round(c.scale, 9) for c in cams}) == 1

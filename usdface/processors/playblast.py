@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, OptionError
+from ..fileutil import probe_writable_folder
 
 __all__ = ["parse_size", "playblast", "playblast_stills", "register_cli", "video_timing"]
 
@@ -197,7 +198,7 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
             raise OptionError(f"-o {output}: is the {label} input; the movie would overwrite it")
     w, h = parse_size(size)
     require_encoder()  # a missing encoder fails before any work
-    _probe_folder(output)
+    probe_writable_folder(output, what="movie")  # fails now, before the shot is read
     workers = default_workers() if workers is None else int(workers)
     if workers < 0:
         raise OptionError(f"--workers {workers}: expected 0 (this thread) or more")
@@ -365,22 +366,6 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
 
     return SimpleNamespace(reader=reader, times=times, notes=notes, alignment=alignment, vmap=vmap,
                            compositor=compositor, jobs=jobs)
-
-
-def _probe_folder(output: Path) -> None:
-    """An output folder that is missing or cannot be written fails now, before the shot is read."""
-    import os
-    import tempfile
-
-    folder = output.parent if str(output.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"cannot write movie {output}: folder {folder} does not exist")
-    try:
-        fd, probe = tempfile.mkstemp(prefix=f".{output.stem}.probe-", dir=folder)
-    except OSError as exc:
-        raise InputError(f"cannot write movie {output}: folder {folder}: {exc.strerror or exc}") from None
-    os.close(fd)
-    os.unlink(probe)
 
 
 def _video_frames(vid, index, present):

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from ..errors import InputError, OptionError
+from ..fileutil import probe_writable_folder
 
 __all__ = ["batch_report", "register_cli", "report"]
 
@@ -24,17 +25,7 @@ def _check_output(output) -> Path:
     out = Path(output)
     if out.suffix.lower() not in (".html", ".htm"):
         raise OptionError(f"-o {out}: a report is an .html file")
-    folder = out.parent if str(out.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"cannot write report {out}: folder {folder} does not exist")
-    if out.is_dir():
-        raise InputError(f"cannot write report {out}: it is a folder")
-    try:  # a folder that cannot be written fails now, before any rendering
-        fd, probe = tempfile.mkstemp(prefix=f".{out.stem}.probe-", dir=folder)
-    except OSError as exc:
-        raise InputError(f"cannot write report {out}: folder {folder}: {exc.strerror or exc}") from None
-    os.close(fd)
-    os.unlink(probe)
+    probe_writable_folder(out, what="report")  # fails now, before any rendering
     return out
 
 
@@ -77,6 +68,15 @@ def _commit_folder(tmp: Path, final: Path) -> None:
     os.replace(tmp, final)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _finish(page, out: Path, tmp_media: Path | None) -> None:
+    """Render the page, move the finished media folder into place, then the page (last: a page on
+    disk always finds its movies)."""
+    text = page.render()
+    if tmp_media is not None:
+        _commit_folder(tmp_media, out.parent / _media_name(out))
+    _write_text_atomic(out, text)
 
 
 def shot_pictures(d, reader) -> dict:
@@ -138,11 +138,8 @@ def report(outdir, output, *, playblast=True, playblast_size=(640, 360), playbla
             movie = os.path.relpath(p.resolve(), out.resolve().parent)
         add_shot_section(page, d, pictures, anchor="shot", movie=movie,
                          movie_caption=f"playblast, {playblast_color} colours" if playblast is True else "playblast")
-        text = page.render()
-        if tmp_media is not None:
-            _commit_folder(tmp_media, out.parent / _media_name(out))
-            tmp_media = None
-        _write_text_atomic(out, text)
+        _finish(page, out, tmp_media)
+        tmp_media = None
     finally:
         if tmp_media is not None:
             shutil.rmtree(tmp_media, ignore_errors=True)
@@ -247,11 +244,8 @@ def batch_report(summary, output=None, *, playblasts=False, workers=None) -> dic
                 movie = f"{_media_name(out)}/{name}"
             add_shot_section(page, d, shot_pictures(d, reader), anchor=anchor, movie=movie,
                              movie_caption="playblast" if movie else "")
-        text = page.render()
-        if tmp_media is not None:
-            _commit_folder(tmp_media, out.parent / _media_name(out))
-            tmp_media = None
-        _write_text_atomic(out, text)
+        _finish(page, out, tmp_media)
+        tmp_media = None
     finally:
         if tmp_media is not None:
             shutil.rmtree(tmp_media, ignore_errors=True)
