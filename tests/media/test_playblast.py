@@ -15,11 +15,11 @@ def frames_of(path):
     return [img.astype(np.float64) for _, img in read_movie(path)]
 
 
-def displacement_curve(shot, times):
+def displacement_curve(shot, times, *, stabilized=False):
     from usdface.usd.playback import ShotReader
 
     r = ShotReader.open(shot)
-    return np.linalg.norm(r.face_points(times) - r.rest_points, axis=2).max(axis=1)
+    return np.linalg.norm(r.face_points(times, stabilized=stabilized) - r.rest_points, axis=2).max(axis=1)
 
 
 def test_every_time_sample_one_frame_and_the_motion_where_the_shot_has_it(shots, cli, tmp_path):
@@ -27,14 +27,15 @@ def test_every_time_sample_one_frame_and_the_motion_where_the_shot_has_it(shots,
 
     shot = shots["hybrid"] / "shot.usda"
     out = tmp_path / "jaw.mp4"
-    assert cli("playblast", shot, "-o", out, "--range", 300, 480, "--size", "320x180", "-q") == 0
+    # --stabilized: the face as the transfer moved it (the head's own motion on /Face left out)
+    assert cli("playblast", shot, "-o", out, "--range", 300, 480, "--size", "320x180", "--stabilized", "-q") == 0
     info = movie_info(out)
     assert info["codec"] == "h264" and info["pixelFormat"] == "yuv420p" and info["rate"] == pytest.approx(60.0)
     frames = frames_of(out)
     assert len(frames) == info["frames"] == 181
     # image change from the first frame follows the face's motion (largest vertex displacement)
     change = np.array([np.abs(f - frames[0])[40:].mean() for f in frames])  # below the burn-in
-    motion = displacement_curve(shot, np.arange(300, 481))
+    motion = displacement_curve(shot, np.arange(300, 481), stabilized=True)
     assert np.corrcoef(change, motion - motion[0])[0, 1] > 0.9
     # the frames at known time codes: where the jaw opens (340-360) and closes (460) fast, decoded
     # frame k matches the still of time code 300 + k better than those of its neighbours, on the
@@ -42,7 +43,7 @@ def test_every_time_sample_one_frame_and_the_motion_where_the_shot_has_it(shots,
     times = [340, 345, 350, 355, 360, 460]
     near = sorted({t + d for t in times for d in (-3, -1, 0, 1, 3)})
     stills = dict(zip(near, (s.astype(np.float64) for s in
-                             playblast_stills(shot, near, frame_range=(300, 480), size=(320, 180)))))
+                             playblast_stills(shot, near, frame_range=(300, 480), size=(320, 180), stabilized=True))))
     for t in times:
         moving = np.abs(stills[t - 3] - stills[t + 3]).max(axis=2) > 24
         moving[:40] = False  # the burn-in band
@@ -54,6 +55,18 @@ def test_every_time_sample_one_frame_and_the_motion_where_the_shot_has_it(shots,
     lower = np.abs(f389 - frames[0])[100:].mean()
     upper = np.abs(f389 - frames[0])[40:70].mean()
     assert lower > 4 * upper
+    # by default the head's motion (D1: a time-sampled transform on /Face) plays too: the reader
+    # gives world points = stabilised points carried by /Face's transform, markers likewise
+    from usdface.usd.playback import ShotReader
+
+    r = ShotReader.open(shot)
+    head = r.head_motion([0, 389])
+    np.testing.assert_allclose(head[0], np.eye(4), atol=1e-9)       # identity at the neutral frame
+    assert np.abs(head[1][3, :3]).max() > 0.3                         # the head has moved by 389
+    stab, world = r.face_points([389], stabilized=True)[0], r.face_points([389])[0]
+    np.testing.assert_allclose(world, stab @ head[1][:3, :3] + head[1][3, :3], atol=1e-9)
+    mk, bd = r.markers([389])[0], r.bound_points(world[None])[0]
+    assert np.nanmedian(np.linalg.norm(mk - bd, axis=1)) < 1.2  # markers stay on the moving face (fit residual)
 
 
 def test_default_playblast_of_the_main_job(shots, cli, tmp_path):
@@ -77,15 +90,16 @@ def test_skeleton_shot_is_skinned_by_usdskel(shots, cli, tmp_path):
     """A skeleton shot plays its skinning (UsdSkel evaluates it; the shared evaluator will take over
     in usdface.usd.playback.face_points_at), not a still face."""
     from usdface.usd.playback import ShotReader
-    from usdface.usd.skel_layer import skinned_points
 
     shot = shots["hybrid"] / "shot_skel.usda"
-    r = ShotReader.open(shot)
-    assert r.animated
-    pts = r.face_points([0, 389])
-    _, ref = skinned_points(shot, times=[0, 389])
-    np.testing.assert_allclose(pts, ref, atol=1e-4)  # no transform above the skinned mesh today
-    assert np.linalg.norm(pts[1] - pts[0], axis=1).max() > 3.0  # the jaw opens (cm)
+    skel, cache = ShotReader.open(shot), ShotReader.open(shots["hybrid"] / "shot.usda")
+    assert skel.animated
+    times = [0, 389, 700]
+    # one performance in both deliverables: the skinned face lands on the point cache (K = 8
+    # influences: 0.066 cm in the README), head motion included
+    assert np.abs(skel.face_points(times) - cache.face_points(times)).max() < 0.1
+    moved = cache.face_points([389], stabilized=True)[0] - cache.rest_points
+    assert np.linalg.norm(moved, axis=1).max() > 3.0  # the jaw opens (cm)
     out = tmp_path / "skel.mp4"
     assert cli("playblast", shot, "-o", out, "--range", 330, 389, "--size", "320x240", "-q") == 0
     frames = frames_of(out)
@@ -143,7 +157,7 @@ def test_a_layer_without_a_mesh(shots, cli, tmp_path, capsys):
     out = tmp_path / "x.mp4"
     assert cli("playblast", shots["hybrid"] / "capture.usdc", "-o", out) == 2
     assert "no Mesh prim" in _one_line_error(capsys)
-    assert cli("playblast", shots["hybrid"] / "anim.usdc", "-o", out) == 2
+    assert cli("playblast", shots["hybrid"] / "analysis.usdc", "-o", out) == 2
     assert "over-only layer" in _one_line_error(capsys)
     assert cli("playblast", shots["hybrid"] / "mesh.usdc", "-o", out) == 2
     assert "no animation" in _one_line_error(capsys)

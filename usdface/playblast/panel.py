@@ -151,7 +151,8 @@ class ShotPanel:
         return s if s.shape[0] <= 20000 else s[:: int(np.ceil(s.shape[0] / 20000))]
 
     def scalars(self, points: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray | None:
-        """Per-vertex values of the colour mode at a frame (None for regions / none)."""
+        """Per-vertex values of the colour mode at a frame (None for regions / none); ``points``
+        head-stabilised (the displacement of the transfer, not of the head)."""
         c = self.style.color
         if c == "displacement":
             return np.linalg.norm(points - self.rest_points, axis=1)
@@ -165,8 +166,9 @@ class ShotPanel:
 
     def render(self, time: float, points: np.ndarray, *, markers: np.ndarray | None = None,
                bound: np.ndarray | None = None, reference: np.ndarray | None = None,
-               note: str = "") -> np.ndarray:
-        """The panel at ``time`` (BGR uint8, ``size``), with ``note`` added to the burn-in."""
+               stabilized: np.ndarray | None = None, note: str = "") -> np.ndarray:
+        """The panel at ``time`` (BGR uint8, ``size``), with ``note`` added to the burn-in;
+        ``stabilized``: the points without head motion, for the colours (default: ``points``)."""
         st = self.style
         kwargs = {}
         c = st.color
@@ -176,7 +178,8 @@ class ShotPanel:
             label = {"displacement": f"displacement ({self.units})", "error": f"error ({self.units})",
                      "hybrid-weight": "hybrid weight w"}[c]
             rng = (0.0, 1.0) if c == "hybrid-weight" else self.scalar_range
-            kwargs.update(scalars=self.scalars(points, reference), scalar_range=rng, scalar_label=label)
+            kwargs.update(scalars=self.scalars(points if stabilized is None else stabilized, reference),
+                          scalar_range=rng, scalar_label=label)
         if st.markers and markers is not None:
             kwargs["markers"] = markers
             if st.labels and self.marker_names:

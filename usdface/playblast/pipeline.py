@@ -51,7 +51,7 @@ class Compositor:
             else:
                 images.append(panel.render(data["time"], data["points"], markers=data.get("markers"),
                                            bound=data.get("bound"), reference=data.get("reference"),
-                                           note=data.get("note", "")))
+                                           stabilized=data.get("stabilized"), note=data.get("note", "")))
         if self.video_size is not None:
             if job.video is None:
                 img = placeholder(self.video_size, job.video_note or "no video frame")

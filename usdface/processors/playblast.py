@@ -84,27 +84,46 @@ def video_timing(shot_path, *, shot_start: int, rate: float):
 
 
 class _Frames:
-    """A shot's points over the playblast's time codes, read in chunks (kept in memory when small)."""
+    """A shot's points over the playblast's time codes, read in chunks (kept in memory when small).
 
-    def __init__(self, reader, times, *, markers: bool, bound: bool):
+    Items are ``(start index, points, markers, bound, stabilised)``: points (f, N, 3) as drawn,
+    markers and bound points (f, M, 3) or None, and the points without the head motion (f, N, 3;
+    None when they are the drawn points): displacement colours measure what the transfer did,
+    not the head's motion.
+    """
+
+    def __init__(self, reader, times, *, markers: bool, bound: bool, stabilized: bool = False):
         self.reader, self.times = reader, np.asarray(times)
-        self.want_markers, self.want_bound = markers, bound
+        self.want_markers, self.want_bound, self.stabilized = markers, bound, stabilized
         n = reader.rest_points.shape[0]
-        self._keep = len(self.times) * n * 12 <= IN_MEMORY_LIMIT
+        self._keep = len(self.times) * n * 24 <= IN_MEMORY_LIMIT
         self._cache = None
 
+    def _read(self, t):
+        r = self.reader
+        if self.stabilized:
+            pts, stab = r.face_points(t, stabilized=True), None
+            mk = r.markers(t, stabilized=True) if self.want_markers else None
+        else:
+            pts = r.face_points(t)
+            head = r.head_motion(t)
+            moving = not np.allclose(head, np.eye(4)[None])
+            stab = r.face_points(t, stabilized=True) if moving else None
+            mk = r.markers(t) if self.want_markers else None
+        bd = r.bound_points(pts) if self.want_bound else None
+        return pts, mk, bd, stab
+
     def chunks(self):
-        """Yield (start index, points (f, N, 3), markers (f, M, 3) or None, bound (f, M, 3) or None)."""
         if self._cache is not None:
             yield from self._cache
             return
         keep = [] if self._keep else None
         for i in range(0, len(self.times), CHUNK):
-            t = self.times[i:i + CHUNK]
-            pts = self.reader.face_points(t)
-            mk = self.reader.markers(t) if self.want_markers else None
-            bd = self.reader.bound_points(pts) if self.want_bound else None
-            item = (i, pts.astype(np.float32) if keep is not None else pts, mk, bd)
+            pts, mk, bd, stab = self._read(self.times[i:i + CHUNK])
+            if keep is not None:
+                pts = pts.astype(np.float32)
+                stab = None if stab is None else stab.astype(np.float32)
+            item = (i, pts, mk, bd, stab)
             if keep is not None:
                 keep.append(item)
             yield item
@@ -112,13 +131,14 @@ class _Frames:
             self._cache = keep
 
     def at(self, index_times):
-        """Points for arbitrary time codes of this shot (the aligned second shot), chunk by chunk."""
+        """Items for arbitrary time codes of this shot (the aligned second shot), chunk by chunk."""
         for i in range(0, len(index_times), CHUNK):
-            t = index_times[i:i + CHUNK]
-            pts = self.reader.face_points(t)
-            mk = self.reader.markers(t) if self.want_markers else None
-            bd = self.reader.bound_points(pts) if self.want_bound else None
-            yield i, pts, mk, bd
+            yield (i,) + self._read(index_times[i:i + CHUNK])
+
+
+def _stable(item):
+    """The head-stabilised points of a chunk item."""
+    return item[4] if item[4] is not None else item[1]
 
 
 def _survey(frames: _Frames, *, reference_frames=None):
@@ -131,8 +151,9 @@ def _survey(frames: _Frames, *, reference_frames=None):
     stride = max(1, n // 24)
     ref_iter = reference_frames.chunks() if reference_frames is not None else None
     spread_best = []
-    for i, pts, mk, bd in frames.chunks():
-        d = np.linalg.norm(pts - rest, axis=2)
+    for item in frames.chunks():
+        i, pts, mk = item[:3]
+        d = np.linalg.norm(_stable(item) - rest, axis=2)
         top_disp = max(top_disp, float(np.nanmax(d)) if d.size else 0.0)
         for k in range(pts.shape[0]):
             if (i + k) % stride == 0:
@@ -141,8 +162,8 @@ def _survey(frames: _Frames, *, reference_frames=None):
         k = int(np.argmax(spread))
         spread_best.append((float(spread[k]), pts[k] if mk is None else np.concatenate([pts[k], mk[k]])))
         if ref_iter is not None:
-            _, ref, _, _ = next(ref_iter)
-            top_err = max(top_err, float(np.nanmax(np.linalg.norm(pts - ref, axis=2))))
+            ref = _stable(next(ref_iter))
+            top_err = max(top_err, float(np.nanmax(np.linalg.norm(_stable(item) - ref, axis=2))))
     spread_best.sort(key=lambda s: s[0])
     extra = [p for _, p in spread_best[-2:]]
     pts_sample = framing_sample(np.stack(sample + extra)) if sample else rest[None]
@@ -152,7 +173,7 @@ def _survey(frames: _Frames, *, reference_frames=None):
 def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", color="regions", markers=False,
               bound=False, labels=False, burnin=True, legend=True, compare=None, video=None, reference=None,
               supersample=1, workers=None, parallel="threads", crf=18, preset="veryfast",
-              turntable_period=6.0, projection="orthographic") -> dict:
+              turntable_period=6.0, projection="orthographic", stabilized=False) -> dict:
     """Render ``shot`` frame by frame into the H.264 movie ``output``.
 
     Parameters
@@ -167,6 +188,9 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
         The movie frame; with ``compare`` or ``video`` each of the two panels gets half the width.
     view, color, markers, bound, labels, burnin, legend, supersample, projection, turntable_period :
         How the face is drawn (see :class:`usdface.playblast.panel.PanelStyle`).
+    stabilized : bool
+        Draw the face without the head motion on its root prim (D1). Displacement and error
+        colours always measure the stabilised face (what the transfer did).
     compare : path, optional
         A second shot shown on the right, aligned in seconds; where it has no frame it holds its
         nearest end frame (burn-in "held").
@@ -204,7 +228,8 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
         raise OptionError(f"--workers {workers}: expected 0 (this thread) or more")
     plan = _plan(shot, frame_range=frame_range, size=(w, h), view=view, color=color, markers=markers, bound=bound,
                  labels=labels, burnin=burnin, legend=legend, compare=compare, video=video, reference=reference,
-                 supersample=supersample, turntable_period=turntable_period, projection=projection)
+                 supersample=supersample, turntable_period=turntable_period, projection=projection,
+                 stabilized=stabilized)
     reader, times, notes, alignment, vmap = plan.reader, plan.times, plan.notes, plan.alignment, plan.vmap
     meta = {"title": reader.name, "comment": f"usdface playblast of {reader.path.name}"}
     bar = progress(total=len(times), desc="playblast", unit="frame")
@@ -252,7 +277,7 @@ def playblast_stills(shot, times, **options) -> list:
 
 def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regions", markers=False, bound=False,
           labels=False, burnin=True, legend=True, compare=None, video=None, reference=None, supersample=1,
-          turntable_period=6.0, projection="orthographic", **_ignored):
+          turntable_period=6.0, projection="orthographic", stabilized=False, **_ignored):
     """Read the shot(s), fit the framing and colour range, and prepare the frame jobs."""
     from types import SimpleNamespace
 
@@ -276,7 +301,7 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
     times = shot_times(reader.start, reader.end, frame_range, what=f"shot {shot}")
     panels_n = 1 + (compare is not None or video is not None)
     pw = [w // 2, w - w // 2] if panels_n == 2 else [w]
-    frames = _Frames(reader, times, markers=markers or labels, bound=bound)
+    frames = _Frames(reader, times, markers=markers or labels, bound=bound, stabilized=stabilized)
     ref_frames = None
     if reference is not None:
         ref_reader = ShotReader.open(reference)
@@ -284,7 +309,7 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
             raise InputError(f"--reference {reference}: {ref_reader.rest_points.shape[0]} points; the shot has "
                              f"{reader.rest_points.shape[0]}")
         shot_times(ref_reader.start, ref_reader.end, (times[0], times[-1]), what=f"reference {reference}")
-        ref_frames = _Frames(ref_reader, times, markers=False, bound=False)
+        ref_frames = _Frames(ref_reader, times, markers=False, bound=False, stabilized=True)
     sample, top_disp, top_err = _survey(frames, reference_frames=ref_frames)
     top = top_err if color == "error" else top_disp
     units = reader.units or "units"
@@ -295,7 +320,7 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
         if not other.animated:
             raise InputError(f"--compare {compare}: the face has no animation")
         alignment = align_shots(times, reader.rate, other.start, other.end, other.rate)
-        other_frames = _Frames(other, alignment.times, markers=markers or labels, bound=bound)
+        other_frames = _Frames(other, alignment.times, markers=markers or labels, bound=bound, stabilized=stabilized)
         o_sample, o_disp, _ = _survey(other_frames)
         if color != "error":
             top = max(top, o_disp)  # one colour scale for both sides
@@ -343,22 +368,25 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
         r_iter = ref_frames.chunks() if ref_frames is not None else None
         v_iter = _video_frames(vid, vmap[0], vmap[1]) if vid is not None else None
         b = r = None
-        for i, pts, mk, bd in frames.chunks():
+        for item in frames.chunks():
+            i, pts, mk, bd, _ = item
+            stab = _stable(item)
             if b_iter is not None:
                 b = next(b_iter)
             if r_iter is not None:
-                r = next(r_iter)
+                r = _stable(next(r_iter))
             for k in range(pts.shape[0]):
                 n = i + k
                 job = FrameJob(index=n)
                 job.panels.append(dict(time=float(times[n]), points=pts[k], markers=None if mk is None else mk[k],
-                                       bound=None if bd is None else bd[k],
-                                       reference=None if r is None else r[1][k]))
+                                       bound=None if bd is None else bd[k], stabilized=stab[k],
+                                       reference=None if r is None else r[k]))
                 if b is not None:
                     held = bool(alignment.held[n])
                     job.panels.append(dict(time=float(alignment.times[n]), points=b[1][k],
                                            markers=None if b[2] is None else b[2][k],
-                                           bound=None if b[3] is None else b[3][k], note="held" if held else ""))
+                                           bound=None if b[3] is None else b[3][k], stabilized=_stable(b)[k],
+                                           note="held" if held else ""))
                 if v_iter is not None:
                     job.video, job.video_note = next(v_iter)
                     job.video_index = int(vmap[0][n])
@@ -411,6 +439,8 @@ def register_cli(subparsers) -> None:
     p.add_argument("--turntable-period", type=float, default=6.0, metavar="SECONDS",
                    help="--view turntable: seconds per swing (default 6)")
     p.add_argument("--perspective", action="store_true", help="perspective camera (default orthographic)")
+    p.add_argument("--stabilized", action="store_true",
+                   help="without the head motion on the face's root (the face as the transfer moved it)")
     p.add_argument("--color", choices=COLORS, default="regions",
                    help="surface colour: regions, displacement from rest, error against --reference, hybrid weight")
     p.add_argument("--reference", help="shot or layer with reference points (for --color error)")
@@ -441,4 +471,4 @@ def _cmd_playblast(args) -> dict:
                      reference=args.reference, supersample=args.supersample, workers=args.workers,
                      parallel=args.parallel, crf=args.crf, preset=args.preset,
                      turntable_period=args.turntable_period,
-                     projection="perspective" if args.perspective else "orthographic")
+                     projection="perspective" if args.perspective else "orthographic", stabilized=args.stabilized)

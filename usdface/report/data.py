@@ -168,7 +168,7 @@ def _displacement(data: ShotData, reader, chunk: int = 128) -> None:
     vmax = np.zeros(rest.shape[0])
     for i in range(0, data.n_frames, chunk):
         t = data.frames[i:i + chunk]
-        d = np.linalg.norm(reader.face_points(t) - rest, axis=2)
+        d = np.linalg.norm(reader.face_points(t, stabilized=True) - rest, axis=2)  # the transfer, not the head
         stats[i:i + len(t)] = np.stack([d.min(axis=1), np.median(d, axis=1), np.percentile(d, 95, axis=1),
                                         d.max(axis=1)], axis=1)
         vmax = np.maximum(vmax, d.max(axis=0))

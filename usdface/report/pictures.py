@@ -26,7 +26,7 @@ def contact_sheet_picture(d, reader, *, cell: int = 300, count: int = 8) -> tupl
     """PNG of ``count`` frames coloured by displacement on one scale, and the time codes shown."""
     idx = contact_frames(d, count)
     times = d.frames[idx]
-    pts = reader.face_points(times)
+    pts = reader.face_points(times, stabilized=True)  # the transfer's deformation, head motion removed
     rest = reader.rest_points
     disp = np.linalg.norm(pts - rest, axis=2)
     top = float(disp.max()) or 1.0
@@ -35,7 +35,8 @@ def contact_sheet_picture(d, reader, *, cell: int = 300, count: int = 8) -> tupl
                          scalar_label=f"displacement ({d.units})", supersample=2) for k in range(len(idx))]
     peak = int(np.argmax(d.displacement[:, 3])) if d.displacement is not None else -1
     caps = [f"frame {int(t)}" + ("  (largest)" if i == peak else "") for i, t in zip(idx, times)]
-    sheet = contact_sheet(cells, caps, columns=4, title=f"{d.name}: displacement from rest, one colour scale")
+    sheet = contact_sheet(cells, caps, columns=4,
+                          title=f"{d.name}: displacement from rest (head motion removed), one colour scale")
     return encode_jpeg(sheet), [int(t) for t in times]
 
 
@@ -60,7 +61,7 @@ def map_picture(reader, values, *, label: str, title: str, size: int = 520, vran
 def thumbnail(d, reader, *, size: int = 200) -> bytes:
     """A small picture of the frame of largest displacement (batch tables)."""
     k = int(np.argmax(d.displacement[:, 3])) if d.displacement is not None else 0
-    pts = reader.face_points([d.frames[k]])[0]
+    pts = reader.face_points([d.frames[k]], stabilized=True)[0]
     disp = np.linalg.norm(pts - reader.rest_points, axis=1)
     img = render_mesh(pts, reader.triangles, size=(size, size), scalars=disp, legend=False, supersample=2)
     return encode_jpeg(img)

@@ -186,14 +186,36 @@ class ShotReader:
         t = self.transfer
         return " ".join(v for v in (t.get("distanceMethod"), t.get("mode")) if v)
 
-    def face_points(self, times) -> np.ndarray:
-        """(F, N, 3) world points of the face at ``times`` (see :func:`face_points_at`)."""
-        return face_points_at(self._stage, self._prim, times)
+    def face_points(self, times, *, stabilized: bool = False) -> np.ndarray:
+        """(F, N, 3) world points of the face at ``times`` (see :func:`face_points_at`); with
+        ``stabilized`` the head motion on the face's root prim (D1) is taken out, leaving what the
+        transfer did (the displacement the colours and the report measure)."""
+        pts = face_points_at(self._stage, self._prim, times)
+        return _remove_head(pts, self.head_motion(times)) if stabilized else pts
 
-    def markers(self, times) -> np.ndarray | None:
-        """(F, M, 3) world positions of the capture markers, NaN where invalid (None: no capture)."""
+    def head_motion(self, times) -> np.ndarray:
+        """(F, 4, 4) row-vector transforms of the face's root prim (the default prim above the
+        mesh: its time-sampled ``xformOp:transform`` is the head motion, identity at the neutral
+        frame), identity when it has none. World = stabilised @ H(t)."""
+        out = np.repeat(np.eye(4)[None], len(times), axis=0)
+        root = self._stage.GetDefaultPrim()
+        if not root or not self._prim.GetPath().HasPrefix(root.GetPath()) or not root.IsA(UsdGeom.Xformable):
+            return out
+        xf = UsdGeom.Xformable(root)
+        if not xf.TransformMightBeTimeVarying():
+            m = np.asarray(xf.GetLocalTransformation(Usd.TimeCode.Default()), dtype=np.float64)
+            return np.repeat(m[None], len(times), axis=0)
+        for i, t in enumerate(times):
+            out[i] = np.asarray(xf.GetLocalTransformation(Usd.TimeCode(float(t))), dtype=np.float64)
+        return out
+
+    def markers(self, times, *, stabilized: bool = False) -> np.ndarray | None:
+        """(F, M, 3) world positions of the capture markers, NaN where invalid (None: no capture);
+        ``stabilized``: without the head motion, like :meth:`face_points`."""
         if self._markers_prim is None:
             return None
+        if stabilized:
+            return _remove_head(self.markers(times), self.head_motion(times))
         prim = self._markers_prim
         attr = UsdGeom.Points(prim).GetPointsAttr()
         valid = prim.GetAttribute("primvars:usdface:valid")
@@ -243,6 +265,12 @@ class ShotReader:
             except ValueError:
                 out[k] = v
         return out
+
+
+def _remove_head(points: np.ndarray, head: np.ndarray) -> np.ndarray:
+    """points (F, K, 3) @ inverse(head (F, 4, 4)), row-vector convention."""
+    inv = np.linalg.inv(head)
+    return np.einsum("fkj,fjl->fkl", points, inv[:, :3, :3]) + inv[:, None, 3, :3]
 
 
 def _find_face_mesh(stage: Usd.Stage) -> Usd.Prim | None:
