@@ -57,6 +57,7 @@ def main() -> None:
     ap.add_argument("shot", nargs="?")
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--size", default="960x540")
+    ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     size = parse_size(args.size)
     with tempfile.TemporaryDirectory(prefix="usdface-bench-playblast-") as tmp:
@@ -66,29 +67,39 @@ def main() -> None:
         print(f"shot {shot}, frames {rng[0]}..{rng[1]} at {size[0]}x{size[1]}; cores usable: "
               f"{len(os.sched_getaffinity(0))}; load average {os.getloadavg()[0]:.2f}")
         playblast(shot, tmp / "warm.mp4", frame_range=(0, 9), size=size)  # compile / load the kernels
-        rows = []
-        for label, kw in (("playblast, 2 threads (default)", dict(workers=2, parallel="threads")),
-                          ("playblast, 1 thread", dict(workers=1)),
-                          ("playblast, 2 processes", dict(workers=2, parallel="processes"))):
-            wall, cpu, _ = timed(lambda: playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size, **kw))
-            rows.append((label, wall, cpu))
+        playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size)
         frames = [img for _, img in read_movie(tmp / "pb.mp4")]
+        times = list(range(rng[0], rng[1] + 1))
 
         def bare():
             with MovieWriter(tmp / "bare.mp4", size, 60.0) as w:
                 for img in frames:
                     w.write(img)
 
-        enc_wall, enc_cpu, _ = timed(bare)
-        times = list(range(rng[0], rng[1] + 1))
-        st_wall, st_cpu, _ = timed(lambda: playblast_stills(shot, times, frame_range=rng, size=size))
+        cases = [("playblast, 2 threads (default)",
+                  lambda: playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size, workers=2)),
+                 ("playblast, 1 thread", lambda: playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size,
+                                                           workers=1)),
+                 ("playblast, 2 processes", lambda: playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size,
+                                                              workers=2, parallel="processes")),
+                 ("bare encode loop (same frames)", bare),
+                 ("render only (stills, 1 thread)",
+                  lambda: playblast_stills(shot, times, frame_range=rng, size=size))]
+        walls = {label: [] for label, _ in cases}
+        cpus = {label: [] for label, _ in cases}
+        for _ in range(args.repeat):  # interleaved, so a burst of load hits every case alike
+            for label, fn in cases:
+                wall, cpu, _ = timed(fn)
+                walls[label].append(wall)
+                cpus[label].append(cpu)
         n = len(frames)
+        enc = float(np.median(walls["bare encode loop (same frames)"]))
+        print(f"median of {args.repeat} interleaved runs")
         print(f"{'':34s} {'wall s':>8s} {'cpu s':>8s} {'frames/s':>9s} {'x bare encode':>14s}")
-        for label, wall, cpu in rows:
-            print(f"{label:34s} {wall:8.2f} {cpu:8.2f} {n / wall:9.1f} {wall / enc_wall:14.2f}")
-        print(f"{'bare encode loop (same frames)':34s} {enc_wall:8.2f} {enc_cpu:8.2f} {n / enc_wall:9.1f} {1.0:14.2f}")
-        print(f"{'render only (stills, 1 thread)':34s} {st_wall:8.2f} {st_cpu:8.2f} {n / st_wall:9.1f} "
-              f"{st_wall / enc_wall:14.2f}")
+        for label, _ in cases:
+            wall, cpu = float(np.median(walls[label])), float(np.median(cpus[label]))
+            print(f"{label:34s} {wall:8.2f} {cpu:8.2f} {n / wall:9.1f} {wall / enc:14.2f}")
+        print("(cpu s: this process only; processes' workers are not counted)")
         print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

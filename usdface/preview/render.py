@@ -577,7 +577,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
             if idx.size and (role in LOOP_ROLES or (role is None and name in LOOP_NAMES)):
                 # a loop of vertices (hole or border) is one vertex wide: shade a band around it
                 rgb = np.asarray(pal[name], dtype=np.float64) / 255
-                near, weight = _band(points, idx.astype(np.int64), BAND_WIDTH * diag)
+                near, weight = _band_cached(points, tris, idx.astype(np.int64), BAND_WIDTH * diag)
                 colors[near] = colors[near] * (1 - weight[:, None]) + rgb * weight[:, None]
         for name, _role, idx in items:
             colors[idx.astype(np.int64)] = np.asarray(pal[name], dtype=np.float64) / 255
@@ -689,6 +689,24 @@ LOOP_ROLES = ("outerBorder", "mouth", "eye")
 LOOP_NAMES = ("outerBorder", "mouth", "leftEye", "rightEye")
 #: width of the band drawn around a loop region, as a fraction of the mesh's bounding-box diagonal
 BAND_WIDTH = 0.035
+
+
+_BAND_CACHE: dict = {}
+
+
+def _band_cached(points, tris, idx, width):
+    """:func:`_band` once per topology and region: a movie renders the same face hundreds of times
+    and the band is decoration (computed on the first pose seen)."""
+    import hashlib
+
+    key = (points.shape[0], hashlib.sha1(np.ascontiguousarray(tris).tobytes()).hexdigest(),
+           hashlib.sha1(idx.tobytes()).hexdigest())
+    hit = _BAND_CACHE.get(key)
+    if hit is None:
+        if len(_BAND_CACHE) >= 32:
+            _BAND_CACHE.clear()
+        hit = _BAND_CACHE[key] = _band(points, idx, width)
+    return hit
 
 
 def _band(points: np.ndarray, idx: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:

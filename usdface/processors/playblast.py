@@ -92,9 +92,11 @@ class _Frames:
     not the head's motion.
     """
 
-    def __init__(self, reader, times, *, markers: bool, bound: bool, stabilized: bool = False):
+    def __init__(self, reader, times, *, markers: bool, bound: bool, stabilized: bool = False,
+                 need_stable: bool = True):
         self.reader, self.times = reader, np.asarray(times)
         self.want_markers, self.want_bound, self.stabilized = markers, bound, stabilized
+        self.need_stable = need_stable  # only displacement / error colours and their range need them
         n = reader.rest_points.shape[0]
         self._keep = len(self.times) * n * 24 <= IN_MEMORY_LIMIT
         self._cache = None
@@ -105,10 +107,13 @@ class _Frames:
             pts, stab = r.face_points(t, stabilized=True), None
             mk = r.markers(t, stabilized=True) if self.want_markers else None
         else:
-            pts = r.face_points(t)
-            head = r.head_motion(t)
-            moving = not np.allclose(head, np.eye(4)[None])
-            stab = r.face_points(t, stabilized=True) if moving else None
+            pts, stab = r.face_points(t), None
+            if self.need_stable:
+                head = r.head_motion(t)
+                if not np.allclose(head, np.eye(4)[None]):
+                    from ..usd.playback import remove_head_motion
+
+                    stab = remove_head_motion(pts, head)
             mk = r.markers(t) if self.want_markers else None
         bd = r.bound_points(pts) if self.want_bound else None
         return pts, mk, bd, stab
@@ -301,7 +306,9 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
     times = shot_times(reader.start, reader.end, frame_range, what=f"shot {shot}")
     panels_n = 1 + (compare is not None or video is not None)
     pw = [w // 2, w - w // 2] if panels_n == 2 else [w]
-    frames = _Frames(reader, times, markers=markers or labels, bound=bound, stabilized=stabilized)
+    scalar_colors = color in ("displacement", "error")
+    frames = _Frames(reader, times, markers=markers or labels, bound=bound, stabilized=stabilized,
+                     need_stable=scalar_colors)
     ref_frames = None
     if reference is not None:
         ref_reader = ShotReader.open(reference)
@@ -320,7 +327,8 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
         if not other.animated:
             raise InputError(f"--compare {compare}: the face has no animation")
         alignment = align_shots(times, reader.rate, other.start, other.end, other.rate)
-        other_frames = _Frames(other, alignment.times, markers=markers or labels, bound=bound, stabilized=stabilized)
+        other_frames = _Frames(other, alignment.times, markers=markers or labels, bound=bound, stabilized=stabilized,
+                               need_stable=scalar_colors)
         o_sample, o_disp, _ = _survey(other_frames)
         if color != "error":
             top = max(top, o_disp)  # one colour scale for both sides

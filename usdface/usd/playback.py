@@ -23,7 +23,7 @@ from .capture_layer import find_marker_set
 from .layers import open_stage, stage_units
 from .mesh_layer import BINDING_API, MESH_SCHEMAS, read_binding, read_regions
 
-__all__ = ["ShotReader", "face_points_at"]
+__all__ = ["ShotReader", "face_points_at", "remove_head_motion"]
 
 
 def _world_matrices(prim: Usd.Prim, times) -> np.ndarray:
@@ -191,7 +191,7 @@ class ShotReader:
         ``stabilized`` the head motion on the face's root prim (D1) is taken out, leaving what the
         transfer did (the displacement the colours and the report measure)."""
         pts = face_points_at(self._stage, self._prim, times)
-        return _remove_head(pts, self.head_motion(times)) if stabilized else pts
+        return remove_head_motion(pts, self.head_motion(times)) if stabilized else pts
 
     def head_motion(self, times) -> np.ndarray:
         """(F, 4, 4) row-vector transforms of the face's root prim (the default prim above the
@@ -215,7 +215,7 @@ class ShotReader:
         if self._markers_prim is None:
             return None
         if stabilized:
-            return _remove_head(self.markers(times), self.head_motion(times))
+            return remove_head_motion(self.markers(times), self.head_motion(times))
         prim = self._markers_prim
         attr = UsdGeom.Points(prim).GetPointsAttr()
         valid = prim.GetAttribute("primvars:usdface:valid")
@@ -267,7 +267,7 @@ class ShotReader:
         return out
 
 
-def _remove_head(points: np.ndarray, head: np.ndarray) -> np.ndarray:
+def remove_head_motion(points: np.ndarray, head: np.ndarray) -> np.ndarray:
     """points (F, K, 3) @ inverse(head (F, 4, 4)), row-vector convention."""
     inv = np.linalg.inv(head)
     return np.einsum("fkj,fjl->fkl", points, inv[:, :3, :3]) + inv[:, None, 3, :3]
