@@ -114,7 +114,10 @@ def _add_subcommands(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="PNG to write")
     p.add_argument("--frame", type=float, help="time code to show (default: the layer's start)")
     p.add_argument("--frames", type=float, nargs="+", metavar="F", help="several time codes: a contact sheet")
-    p.add_argument("--view", choices=["front", "left", "right", "side"], default="front")
+    from .preview.camera import VIEW_CHOICES
+
+    p.add_argument("--view", choices=VIEW_CHOICES, default="front",
+                   help="camera (the list playblast shares; turntable turns only in a playblast: a still is the front)")
     p.add_argument("--size", type=int, default=768, help="image size in pixels (square)")
     p.add_argument("--color", choices=["regions", "displacement", "error", "hybrid-weight", "none"], default="regions",
                    help="colour the surface by region, by displacement from the rest pose, by error against "
@@ -214,6 +217,8 @@ PLUGIN_COMMANDS = (
     "usdface.processors.skel",
     "usdface.processors.acquisition",
     "usdface.processors.tissue",
+    "usdface.processors.playblast",
+    "usdface.processors.report",
 )
 
 

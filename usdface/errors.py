@@ -75,6 +75,11 @@ class Interrupted(KeyboardInterrupt):
         return 128 + self.signum
 
 
+class DependencyError(EnvironmentFault):
+    """An optional dependency (or a part of it, such as an encoder) is missing; the message names
+    the extra or package to install."""
+
+
 class SchemaRegistrationError(UsdFaceError):
     """usdface's USD schemas could not be registered in this process."""
 

@@ -404,3 +404,26 @@ def describe_exception(exc: BaseException) -> str:
         cause = _CAUSES.get(number) if number is not None else None
         return f"USD error: {line}" + (f" ({cause})" if cause and cause not in line.lower() else "")
     return f"{type(exc).__name__}: {exc}"
+
+
+def probe_writable_folder(path: str | os.PathLike, *, what: str) -> Path:
+    """The folder of the output ``path``, checked to exist and to take a new file (a temporary file
+    is created and removed: permission bits do not tell, root ignores them and read-only mounts
+    refuse anyway). Raises InputError naming ``what`` ("movie", "report"...) and the folder."""
+    import tempfile
+
+    from .errors import InputError
+
+    out = Path(path)
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"cannot write {what} {out}: folder {folder} does not exist")
+    if out.is_dir():
+        raise InputError(f"cannot write {what} {out}: it is a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{out.stem}.probe-", dir=folder)
+    except OSError as exc:  # read-only, permission, disk full: an environment fault (exit 1)
+        raise write_error(f"{what} {out}", exc) from None
+    os.close(fd)
+    os.unlink(probe)
+    return folder

@@ -44,6 +44,9 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     from ..capture import gaps, neutral as neutral_mod, swaps, timing
 
     reports: dict = {}
+    # how the conditioned frames map to the source's (a playblast beside the source video needs it)
+    timing_report = {"sourceRate": float(capture.rate), "sourceFrames": int(capture.n_frames),
+                     "trimStart": int(trim[0]) if trim is not None else 0}
     if trim is not None:
         start, end = trim
         stop = capture.n_frames if end is None else end
@@ -94,6 +97,9 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     if capture.start_frame != target:
         reports["timeCodes"] = {"sourceStart": int(capture.start_frame), "start": int(target)}
         capture = timing.offset(capture, start_frame=target)
+    timing_report.update(rate=float(capture.rate), frames=int(capture.n_frames),
+                         startTimeCode=int(capture.start_frame))
+    reports["timing"] = timing_report
     return capture, reports
 
 
