@@ -174,13 +174,16 @@ def test_a_range_outside_the_shot(shots, cli, tmp_path, capsys):
 @pytest.mark.parametrize("where", ["missing", "proc"])
 def test_an_output_folder_that_cannot_be_written(shots, cli, tmp_path, capsys, where):
     out = tmp_path / "no" / "such" / "x.mp4" if where == "missing" else "/proc/usdface-playblast.mp4"
-    assert cli("playblast", shots["hybrid"] / "shot.usda", "-o", out, "--range", 0, 3) == 2
+    # a folder that does not exist is a usage error (2); one that refuses files is the environment (1)
+    assert cli("playblast", shots["hybrid"] / "shot.usda", "-o", out, "--range", 0, 3) == \
+        (2 if where == "missing" else 1)
     assert "cannot write movie" in _one_line_error(capsys)
 
 
 def test_a_missing_encoder_names_what_to_install(shots, cli, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "av", None)
-    assert cli("playblast", shots["hybrid"] / "shot.usda", "-o", tmp_path / "x.mp4", "--range", 0, 3) == 2
+    # a missing optional dependency is the environment's fault: exit 1, with what to install
+    assert cli("playblast", shots["hybrid"] / "shot.usda", "-o", tmp_path / "x.mp4", "--range", 0, 3) == 1
     assert 'pip install "usdface[media]"' in _one_line_error(capsys)
     assert list(tmp_path.iterdir()) == []
 

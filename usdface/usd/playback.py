@@ -2,11 +2,9 @@
 markers and the bound points at any list of time codes.
 
 :func:`face_points_at` is the one place that turns a stage and time codes into the face's world
-points. Today: time-sampled ``points`` composed with the ancestors' transforms (the head motion on
-``/Face`` included), and UsdSkel's own SkinningQuery for skeleton shots. It is the seam where the
-shared evaluator of animated faces (``usdface.usd.evaluate``: time-sampled points, UsdSkel
-skinning and blend shapes, ancestor transforms) takes over when it lands; nothing else here
-evaluates animation.
+points, through the shared evaluator of animated faces (``usdface.usd.evaluate``: time-sampled
+points, UsdSkel skinning and blend shapes, ancestor transforms such as the head motion on /Face);
+nothing here evaluates animation itself.
 """
 from __future__ import annotations
 
@@ -41,37 +39,17 @@ def _skinned(prim: Usd.Prim) -> bool:
 
 
 def face_points_at(stage: Usd.Stage, prim: Usd.Prim, times) -> np.ndarray:
-    """World-space points of the face mesh ``prim`` at each time code of ``times``.
-
-    Parameters
-    ----------
-    stage : Usd.Stage
-    prim : Usd.Prim
-        The face mesh (``find_mesh``).
-    times : sequence of float
-        Time codes.
+    """World-space points of the face mesh ``prim`` at each time code of ``times``: the shared
+    evaluator (:class:`usdface.usd.evaluate.FaceEvaluator`: point caches, UsdSkel skinning and
+    blend shapes, ancestor transforms such as the head motion on /Face).
 
     Returns
     -------
-    ndarray, shape (F, N, 3), float64
-        Points in the stage's world space and units: time-sampled points (or skinned points of a
-        skeleton shot) carried through the mesh's ancestors' transforms at each time.
+    ndarray, shape (F, N, 3), float64, the stage's world space and units.
     """
-    times = [float(t) for t in times]
-    if _skinned(prim):
-        # UsdSkel evaluates the skinning (no second evaluator here): points in the mesh's parent space
-        from .skel_layer import skinned_points
+    from .evaluate import FaceEvaluator
 
-        _, local = skinned_points(stage.GetRootLayer().realPath, times=times, stage=stage)
-        mats = _world_matrices(prim.GetParent(), times)
-    else:
-        attr = UsdGeom.Mesh(prim).GetPointsAttr()
-        n = len(attr.Get(Usd.TimeCode.Default()) or attr.Get(Usd.TimeCode.EarliestTime()) or [])
-        local = np.empty((len(times), n, 3))
-        for i, t in enumerate(times):
-            local[i] = np.asarray(attr.Get(Usd.TimeCode(t)), dtype=np.float64)
-        mats = _world_matrices(prim, times)
-    return np.einsum("fnj,fjk->fnk", local, mats[:, :3, :3]) + mats[:, None, 3, :3]
+    return FaceEvaluator(stage, mesh=prim.GetPath()).points_range([float(t) for t in times])
 
 
 @dataclass
@@ -124,6 +102,7 @@ class ShotReader:
     _prim: Usd.Prim | None = field(default=None, repr=False)
     _markers_prim: Usd.Prim | None = field(default=None, repr=False)
     _binding: object = field(default=None, repr=False)
+    _evaluator: object = field(default=None, repr=False)
 
     # --------------------------------------------------------------------------------------------
     @classmethod
@@ -177,6 +156,15 @@ class ShotReader:
 
     # --------------------------------------------------------------------------------------------
     @property
+    def evaluator(self):
+        """The shared evaluator of this shot's face (built once)."""
+        if self._evaluator is None:
+            from .evaluate import FaceEvaluator
+
+            self._evaluator = FaceEvaluator(self._stage, mesh=self._prim.GetPath(), source=str(self.path))
+        return self._evaluator
+
+    @property
     def n_frames(self) -> int:
         return self.end - self.start + 1
 
@@ -190,7 +178,7 @@ class ShotReader:
         """(F, N, 3) world points of the face at ``times`` (see :func:`face_points_at`); with
         ``stabilized`` the head motion on the face's root prim (D1) is taken out, leaving what the
         transfer did (the displacement the colours and the report measure)."""
-        pts = face_points_at(self._stage, self._prim, times)
+        pts = self.evaluator.points_range([float(t) for t in times])
         return remove_head_motion(pts, self.head_motion(times)) if stabilized else pts
 
     def head_motion(self, times) -> np.ndarray:
