@@ -34,7 +34,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from usdface.media import MovieWriter, read_movie  # noqa: E402
-from usdface.processors.playblast import parse_size, playblast, playblast_stills  # noqa: E402
+from usdface.options import PlayblastOptions  # noqa: E402
+from usdface.processors.playblast import playblast, playblast_stills  # noqa: E402
 
 
 def main_job(folder: Path) -> Path:
@@ -59,15 +60,15 @@ def main() -> None:
     ap.add_argument("--size", default="960x540")
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    size = parse_size(args.size)
+    size = PlayblastOptions(size=args.size).size
     with tempfile.TemporaryDirectory(prefix="usdface-bench-playblast-") as tmp:
         tmp = Path(tmp)
         shot = Path(args.shot) if args.shot else main_job(tmp)
         rng = (0, args.frames - 1)
         print(f"shot {shot}, frames {rng[0]}..{rng[1]} at {size[0]}x{size[1]}; cores usable: "
               f"{len(os.sched_getaffinity(0))}; load average {os.getloadavg()[0]:.2f}")
-        playblast(shot, tmp / "warm.mp4", frame_range=(0, 9), size=size)  # compile / load the kernels
-        playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size)
+        playblast(shot, tmp / "warm.mp4", PlayblastOptions(frame_range=(0, 9), size=size))  # compile the kernels
+        playblast(shot, tmp / "pb.mp4", PlayblastOptions(frame_range=rng, size=size))
         frames = [img for _, img in read_movie(tmp / "pb.mp4")]
         times = list(range(rng[0], rng[1] + 1))
 
@@ -76,15 +77,14 @@ def main() -> None:
                 for img in frames:
                     w.write(img)
 
+        opts = PlayblastOptions(frame_range=rng, size=size)
         cases = [("playblast, 2 threads (default)",
-                  lambda: playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size, workers=2)),
-                 ("playblast, 1 thread", lambda: playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size,
-                                                           workers=1)),
-                 ("playblast, 2 processes", lambda: playblast(shot, tmp / "pb.mp4", frame_range=rng, size=size,
-                                                              workers=2, parallel="processes")),
+                  lambda: playblast(shot, tmp / "pb.mp4", opts.replace(workers=2))),
+                 ("playblast, 1 thread", lambda: playblast(shot, tmp / "pb.mp4", opts.replace(workers=1))),
+                 ("playblast, 2 processes",
+                  lambda: playblast(shot, tmp / "pb.mp4", opts.replace(workers=2, parallel="processes"))),
                  ("bare encode loop (same frames)", bare),
-                 ("render only (stills, 1 thread)",
-                  lambda: playblast_stills(shot, times, frame_range=rng, size=size))]
+                 ("render only (stills, 1 thread)", lambda: playblast_stills(shot, times, opts))]
         walls = {label: [] for label, _ in cases}
         cpus = {label: [] for label, _ in cases}
         for _ in range(args.repeat):  # interleaved, so a burst of load hits every case alike

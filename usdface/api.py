@@ -44,7 +44,7 @@ from .errors import OptionError, UsdFaceError
 from .options import BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
 
 __all__ = ["Result", "new_stage", "import_mesh", "import_capture", "bind", "distances", "transfer", "run",
-           "evaluator", "check",
+           "evaluator", "playblast", "report", "check",
            "UsdFaceError", "CaptureOptions", "BindOptions", "DistanceOptions", "TransferOptions", "RunOptions"]
 
 
@@ -170,6 +170,23 @@ def evaluator(source, *, mesh: str | None = None):
     from .usd.layers import describe, open_stage
 
     return FaceEvaluator(open_stage(source, what="file"), mesh=mesh, source=describe(source))
+
+
+def playblast(shot, output, options=None) -> dict:
+    """Render a shot (file) frame by frame into an H.264 movie, exactly as `usdface playblast`;
+    ``options`` is a :class:`usdface.options.PlayblastOptions` (or a dict of its fields).
+    Needs the ``media`` extra."""
+    from .processors.playblast import playblast as render
+
+    return {k: v for k, v in render(shot, output, options).items() if not k.startswith("_")}
+
+
+def report(outdir, output, *, playblast: bool | str = True) -> dict:
+    """The offline HTML QC report of a run's folder, exactly as `usdface report` (``playblast``:
+    render one, link an existing movie by path, or False for none)."""
+    from .processors.report import report as build
+
+    return {k: v for k, v in build(outdir, output, playblast=playblast).items() if not k.startswith("_")}
 
 
 def check(target) -> list:

@@ -20,7 +20,7 @@ import threading
 from . import __version__
 from .cliargs import add_common_options, add_options, options_from_args
 from .errors import Interrupted, UsdFaceError
-from .options import BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
+from .options import COLORS, BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
 
 log = logging.getLogger("usdface")
 
@@ -119,7 +119,7 @@ def _add_subcommands(sub) -> None:
     p.add_argument("--view", choices=VIEW_CHOICES, default="front",
                    help="camera (the list playblast shares; turntable turns only in a playblast: a still is the front)")
     p.add_argument("--size", type=int, default=768, help="image size in pixels (square)")
-    p.add_argument("--color", choices=["regions", "displacement", "error", "hybrid-weight", "none"], default="regions",
+    p.add_argument("--color", choices=COLORS, default="regions",
                    help="colour the surface by region, by displacement from the rest pose, by error against "
                         "--reference, or by the hybrid weight")
     p.add_argument("--reference", help="a layer with reference points (for --color error)")

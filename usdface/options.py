@@ -30,7 +30,7 @@ from .units import METERS_PER_UNIT
 
 __all__ = [
     "CaptureOptions", "BindOptions", "DistanceOptions", "TransferOptions", "SkelOptions", "VideoOptions",
-    "RunOptions", "OUTPUT_KINDS", "option_fields", "flag_of",
+    "RunOptions", "PlayblastOptions", "OUTPUT_KINDS", "option_fields", "flag_of",
 ]
 
 UNITS = tuple(METERS_PER_UNIT)
@@ -261,7 +261,7 @@ def option(default, *, flag: str, help: str, coerce: Callable | None = None, gro
 
 #: order of the option groups in `--help`
 GROUP_ORDER = ("mesh", "capture reading and conditioning", "binding", "video capture", "distances", "transfer",
-               "deliverables", "skeleton")
+               "deliverables", "skeleton", "frames", "look", "side by side", "encoding")
 
 
 def option_fields(cls) -> list:
@@ -472,6 +472,104 @@ class RunOptions(CaptureOptions, BindOptions, DistanceOptions, TransferOptions, 
         if self.layout is not None and self.auto is True:
             raise OptionError("--layout and --auto: give one of them (a layout places the markers; --auto aligns "
                               "the neutral marker cloud)")
+
+
+# -- playblasts ------------------------------------------------------------------------------------
+
+def _movie_size(value, flag):
+    """``"960x540"`` or (960, 540): an even movie frame size (H.264 yuv420p)."""
+    if isinstance(value, (tuple, list)) and len(value) == 2:
+        w, h = value
+    else:
+        try:
+            w, h = (int(v) for v in str(value).lower().split("x"))
+        except ValueError:
+            raise OptionError(f"{flag} {_show(value)}: expected WIDTHxHEIGHT in pixels, e.g. 960x540") from None
+    w, h = _number(w, flag, kind=int, what="whole pixels"), _number(h, flag, kind=int, what="whole pixels")
+    if not (16 <= w <= 7680 and 16 <= h <= 4320):
+        raise OptionError(f"{flag} {w}x{h}: expected 16..7680 x 16..4320 pixels")
+    if w % 2 or h % 2:
+        raise OptionError(f"{flag} {w}x{h}: H.264 (yuv420p) needs an even width and height")
+    return (w, h)
+
+
+def _frame_range(value, flag):
+    first, last = _pair(_int, "FIRST LAST time codes")(value, flag)
+    if last < first:
+        raise OptionError(f"{flag} {first} {last}: expected FIRST <= LAST (time codes, both played)")
+    return (first, last)
+
+
+def _in_range(lo, hi, kind=int):
+    def coerce(value, flag):
+        x = _number(value, flag, kind=kind, what=f"a number in {lo}..{hi}")
+        if not lo <= x <= hi:
+            raise OptionError(f"{flag} {_show(value)}: expected {lo}..{hi}")
+        return x
+    return coerce
+
+
+def _workers(value, flag):
+    n = _number(value, flag, kind=int, what="0 (this thread) or more workers")
+    if n < 0:
+        raise OptionError(f"{flag} {n}: expected 0 (this thread) or more")
+    return n
+
+
+#: camera views shared by `preview` and `playblast` (usdface.preview.camera.VIEW_CHOICES)
+VIEWS = ("front", "three-quarter", "side", "turntable", "left", "right", "side_right")
+#: surface colours shared by `preview` and `playblast`
+COLORS = ("regions", "displacement", "error", "hybrid-weight", "none")
+X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower")
+
+
+@dataclass(frozen=True)
+class PlayblastOptions(_Options):
+    """How `usdface playblast` (and a report's movie) renders a shot."""
+
+    frame_range: tuple | None = option(None, flag="--range", coerce=_frame_range, nargs=2, metavar=("FIRST", "LAST"),
+                                       group="frames", help="time codes to play, inclusive (default: the whole shot)")
+    size: tuple = option((960, 540), flag="--size", coerce=_movie_size, metavar="WxH", group="frames",
+                         help="movie frame in pixels, even numbers")
+    view: str = option("front", flag="--view", choices=VIEWS, group="look", help="camera (the list preview shares)")
+    turntable_period: float = option(6.0, flag="--turntable-period", coerce=_positive_float, metavar="SECONDS",
+                                     group="look", help="--view turntable: seconds per swing")
+    projection: str = option("orthographic", flag="--projection", choices=("orthographic", "perspective"),
+                             group="look", help="camera projection")
+    stabilized: bool = option(False, flag="--stabilized", coerce=_flag, group="look",
+                              help="without the head motion on the face's root (the face as the transfer moved it)")
+    color: str = option("regions", flag="--color", choices=COLORS, group="look",
+                        help="surface colour: regions, displacement from rest, error against --reference, hybrid "
+                             "weight")
+    reference: str | None = option(None, flag="--reference", coerce=_path, metavar="SHOT", group="look",
+                                   help="shot or layer with reference points (for --color error)")
+    markers: bool = option(False, flag="--markers", coerce=_flag, group="look", help="draw the capture markers")
+    bound: bool = option(False, flag="--bound", coerce=_flag, group="look", help="draw the markers' bound points")
+    labels: bool = option(False, flag="--labels", coerce=_flag, group="look",
+                          help="write marker names (implies the markers' positions)")
+    burnin: bool = option(True, flag="--no-burnin", coerce=_flag, group="look",
+                          help="no shot/method/frame/timecode text")
+    legend: bool = option(True, flag="--no-legend", coerce=_flag, group="look", help="no region legend or colour bar")
+    supersample: int = option(1, flag="--supersample", coerce=_in_range(1, 4), metavar="K", group="look",
+                              help="anti-aliasing factor 1..4")
+    compare: str | None = option(None, flag="--compare", coerce=_path, metavar="SHOT", group="side by side",
+                                 help="a second shot side by side on the right (aligned in seconds; a shorter one "
+                                      "holds its last frame)")
+    video: str | None = option(None, flag="--video", coerce=_path, metavar="PATH", group="side by side",
+                               help="the shot's source video side by side on the right (frame k + trim)")
+    workers: int | None = option(None, flag="--workers", coerce=_workers, metavar="N", group="encoding",
+                                 help="render workers (default: the usable cores)")
+    parallel: str = option("threads", flag="--parallel", choices=("threads", "processes"), group="encoding",
+                           help="how workers run (threads: the renderer releases the GIL)")
+    crf: int = option(18, flag="--crf", coerce=_in_range(0, 51), group="encoding",
+                      help="x264 quality, 0 (lossless) .. 51")
+    preset: str = option("veryfast", flag="--preset", choices=X264_PRESETS, group="encoding",
+                         help="x264 speed preset")
+
+    def validate(self) -> None:
+        super().validate()
+        if self.compare is not None and self.video is not None:
+            raise OptionError("--compare and --video: one panel on the right, give one of them")
 
 
 def defaults_of(cls) -> dict:

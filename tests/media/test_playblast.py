@@ -6,6 +6,8 @@ import sys
 import numpy as np
 import pytest
 
+from usdface.options import PlayblastOptions
+
 from usdface.media import movie_info, read_movie
 
 pytest.importorskip("av")
@@ -43,7 +45,7 @@ def test_every_time_sample_one_frame_and_the_motion_where_the_shot_has_it(shots,
     times = [340, 345, 350, 355, 360, 460]
     near = sorted({t + d for t in times for d in (-3, -1, 0, 1, 3)})
     stills = dict(zip(near, (s.astype(np.float64) for s in
-                             playblast_stills(shot, near, frame_range=(300, 480), size=(320, 180), stabilized=True))))
+                             playblast_stills(shot, near, PlayblastOptions(frame_range=(300, 480), size=(320, 180), stabilized=True)))))
     for t in times:
         moving = np.abs(stills[t - 3] - stills[t + 3]).max(axis=2) > 24
         moving[:40] = False  # the burn-in band
@@ -203,7 +205,7 @@ def test_a_failure_while_rendering_leaves_nothing(shots, tmp_path, monkeypatch):
 
     monkeypatch.setattr(pipeline.Compositor, "__call__", flaky)
     with pytest.raises(RuntimeError):
-        playblast(shots["hybrid"] / "shot.usda", tmp_path / "x.mp4", frame_range=(0, 20), size=(160, 90))
+        playblast(shots["hybrid"] / "shot.usda", tmp_path / "x.mp4", PlayblastOptions(frame_range=(0, 20), size=(160, 90)))
     assert list(tmp_path.iterdir()) == []
 
 

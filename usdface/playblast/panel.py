@@ -13,11 +13,11 @@ import numpy as np
 from ..errors import OptionError
 from ..preview import Camera, fit_camera, render_mesh, view_yaw
 from ..preview.burnin import burn_in, placeholder, timecode
+from ..options import COLORS  # one list of surface colours: options, preview, playblast
 
 __all__ = ["COLORS", "PanelStyle", "ShotPanel", "framing_sample"]
 
 #: colour modes (as ``usdface preview --color``)
-COLORS = ("regions", "displacement", "error", "hybrid-weight", "none")
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,9 @@ import numpy as np
 
 from ..errors import InputError, OptionError
 from ..fileutil import probe_writable_folder
+from ..options import PlayblastOptions
 
-__all__ = ["parse_size", "playblast", "playblast_stills", "register_cli", "video_timing"]
+__all__ = ["playblast", "playblast_stills", "register_cli", "video_timing"]
 
 #: frames read from USD per chunk
 CHUNK = 64
@@ -25,21 +26,14 @@ CHUNK = 64
 IN_MEMORY_LIMIT = 400 << 20
 
 
-def parse_size(text) -> tuple[int, int]:
-    """``"960x540"`` -> (960, 540)."""
-    if isinstance(text, (tuple, list)):
-        w, h = text
-    else:
-        try:
-            w, h = (int(v) for v in str(text).lower().split("x"))
-        except ValueError:
-            raise OptionError(f"--size {text}: expected WIDTHxHEIGHT in pixels, e.g. 960x540") from None
-    w, h = int(w), int(h)
-    if not (16 <= w <= 7680 and 16 <= h <= 4320):
-        raise OptionError(f"--size {w}x{h}: expected 16..7680 x 16..4320 pixels")
-    if w % 2 or h % 2:
-        raise OptionError(f"--size {w}x{h}: H.264 (yuv420p) needs an even width and height")
-    return w, h
+def _playblast_options(options) -> PlayblastOptions:
+    if options is None:
+        return PlayblastOptions()
+    if isinstance(options, PlayblastOptions):
+        return options
+    if isinstance(options, dict):
+        return PlayblastOptions.from_mapping(options, what="playblast options")
+    raise OptionError(f"playblast options: expected a PlayblastOptions (usdface.options); got {type(options).__name__}")
 
 
 def _summary_beside(shot_path: Path) -> dict | None:
@@ -175,10 +169,7 @@ def _survey(frames: _Frames, *, reference_frames=None):
     return pts_sample, top_disp, top_err
 
 
-def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", color="regions", markers=False,
-              bound=False, labels=False, burnin=True, legend=True, compare=None, video=None, reference=None,
-              supersample=1, workers=None, parallel="threads", crf=18, preset="veryfast",
-              turntable_period=6.0, projection="orthographic", stabilized=False) -> dict:
+def playblast(shot, output, options: PlayblastOptions | dict | None = None) -> dict:
     """Render ``shot`` frame by frame into the H.264 movie ``output``.
 
     Parameters
@@ -187,26 +178,16 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
         A shot stage (``OUTDIR/shot.usda``) or any layer with a face mesh.
     output : path
         The ``.mp4`` to write (atomically).
-    frame_range : (first, last), optional
-        Time codes to play (inclusive); default the shot's whole range.
-    size : (w, h)
-        The movie frame; with ``compare`` or ``video`` each of the two panels gets half the width.
-    view, color, markers, bound, labels, burnin, legend, supersample, projection, turntable_period :
-        How the face is drawn (see :class:`usdface.playblast.panel.PanelStyle`).
-    stabilized : bool
-        Draw the face without the head motion on its root prim (D1). Displacement and error
-        colours always measure the stabilised face (what the transfer did).
-    compare : path, optional
-        A second shot shown on the right, aligned in seconds; where it has no frame it holds its
-        nearest end frame (burn-in "held").
-    video : path, optional
-        The shot's source video shown on the right: playblast frame k shows video frame
-        k + trim (through the trim, start frame and resampling the run recorded).
-    reference : path, optional
-        Points to compare against for ``color="error"``.
-    workers : int, optional
-        Render workers (default: the usable cores); ``parallel`` = "threads" or "processes".
-    crf, preset :
+    options : PlayblastOptions or dict, optional
+        How to render (:class:`usdface.options.PlayblastOptions`, the fields of the command's
+        flags): ``frame_range`` (time codes, inclusive), ``size`` (with ``compare`` or ``video``
+        each of the two panels gets half the width), ``view``, ``color``, ``markers``... ``stabilized``
+        draws the face without the head motion on its root prim (displacement and error colours
+        always measure the stabilised face). ``compare``: a second shot on the right, aligned in
+        seconds; where it has no frame it holds its nearest end frame (burn-in "held"). ``video``:
+        the shot's source video on the right, playblast frame k showing video frame k + trim
+        (through the trim, start frame and resampling the run recorded). ``workers`` render
+        workers (default: the usable cores), ``parallel`` threads or processes; ``crf``, ``preset``:
         x264 quality and speed.
 
     Returns
@@ -219,28 +200,24 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
     from ..progress import progress
 
     started = _time.perf_counter()
+    o = _playblast_options(options)
     output = Path(output)
     if output.suffix.lower() != ".mp4":
         raise OptionError(f"-o {output}: a playblast is an .mp4 movie (H.264)")
-    for label, p in (("shot", shot), ("--compare", compare), ("--video", video), ("--reference", reference)):
+    for label, p in (("shot", shot), ("--compare", o.compare), ("--video", o.video), ("--reference", o.reference)):
         if p is not None and Path(p).resolve() == output.resolve():
             raise OptionError(f"-o {output}: is the {label} input; the movie would overwrite it")
-    w, h = parse_size(size)
+    w, h = o.size
     require_encoder()  # a missing encoder fails before any work
     probe_writable_folder(output, what="movie")  # fails now, before the shot is read
-    workers = default_workers() if workers is None else int(workers)
-    if workers < 0:
-        raise OptionError(f"--workers {workers}: expected 0 (this thread) or more")
-    plan = _plan(shot, frame_range=frame_range, size=(w, h), view=view, color=color, markers=markers, bound=bound,
-                 labels=labels, burnin=burnin, legend=legend, compare=compare, video=video, reference=reference,
-                 supersample=supersample, turntable_period=turntable_period, projection=projection,
-                 stabilized=stabilized)
+    workers = default_workers() if o.workers is None else o.workers
+    plan = _plan(shot, o)
     reader, times, notes, alignment, vmap = plan.reader, plan.times, plan.notes, plan.alignment, plan.vmap
     meta = {"title": reader.name, "comment": f"usdface playblast of {reader.path.name}"}
     bar = progress(total=len(times), desc="playblast", unit="frame")
-    with MovieWriter(output, (w, h), reader.rate, crf=crf, preset=preset, metadata=meta) as writer:
+    with MovieWriter(output, (w, h), reader.rate, crf=o.crf, preset=o.preset, metadata=meta) as writer:
         try:
-            for img in render_in_order(plan.jobs(), plan.compositor, workers=workers, mode=parallel):
+            for img in render_in_order(plan.jobs(), plan.compositor, workers=workers, mode=o.parallel):
                 writer.write(img)
                 bar.update(1)
         finally:
@@ -249,9 +226,9 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
     info = movie_info(output)
     summary = {
         "output": str(output), "shot": str(shot), "frames": len(times), "first": int(times[0]),
-        "last": int(times[-1]), "rate": reader.rate, "size": [w, h], "view": view, "color": color,
-        "compare": None if compare is None else str(compare), "video": None if video is None else str(video),
-        "held": 0 if alignment is None else alignment.n_held, "workers": workers, "parallel": parallel,
+        "last": int(times[-1]), "rate": reader.rate, "size": [w, h], "view": o.view, "color": o.color,
+        "compare": o.compare, "video": o.video,
+        "held": 0 if alignment is None else alignment.n_held, "workers": workers, "parallel": o.parallel,
         "seconds": round(seconds, 3), "framesPerSecond": round(len(times) / seconds, 2), "movie": info,
         "notes": notes,
     }
@@ -266,12 +243,10 @@ def playblast(shot, output, *, frame_range=None, size=(960, 540), view="front", 
 
 
 
-def playblast_stills(shot, times, **options) -> list:
+def playblast_stills(shot, times, options: PlayblastOptions | dict | None = None) -> list:
     """The movie frames at the time codes ``times`` exactly as :func:`playblast` with the same
     ``options`` draws them (same framing, colour range, burn-in), as BGR images, without encoding."""
-    options = dict(options)
-    options.setdefault("size", (960, 540))
-    plan = _plan(shot, **options)
+    plan = _plan(shot, _playblast_options(options))
     want = {int(t) for t in times}
     missing = want - {int(t) for t in plan.times}
     if missing:
@@ -280,9 +255,7 @@ def playblast_stills(shot, times, **options) -> list:
     return [plan.compositor(job) for job in plan.jobs() if int(plan.times[job.index]) in want]
 
 
-def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regions", markers=False, bound=False,
-          labels=False, burnin=True, legend=True, compare=None, video=None, reference=None, supersample=1,
-          turntable_period=6.0, projection="orthographic", stabilized=False, **_ignored):
+def _plan(shot, o: PlayblastOptions):
     """Read the shot(s), fit the framing and colour range, and prepare the frame jobs."""
     from types import SimpleNamespace
 
@@ -291,12 +264,12 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
     from ..playblast.timing import align_shots, shot_times, video_frame_indices
     from ..usd.playback import ShotReader
 
-    if compare is not None and video is not None:
-        raise OptionError("--compare and --video both take the right half of the frame: give one")
-    w, h = parse_size(size)
-    style = PanelStyle(color=color, markers=markers, bound=bound, labels=labels, legend=legend, burnin=burnin,
-                       supersample=int(supersample), view=view, projection=projection,
-                       turntable_period=float(turntable_period))
+    frame_range, (w, h), color, reference = o.frame_range, o.size, o.color, o.reference
+    compare, video, stabilized = o.compare, o.video, o.stabilized
+    markers, bound, labels = o.markers, o.bound, o.labels
+    style = PanelStyle(color=color, markers=o.markers, bound=o.bound, labels=o.labels, legend=o.legend,
+                       burnin=o.burnin, supersample=o.supersample, view=o.view, projection=o.projection,
+                       turntable_period=o.turntable_period)
     if color == "error" and reference is None:
         raise OptionError("--color error needs --reference SHOT (the points to compare against)")
     reader = ShotReader.open(shot)
@@ -369,7 +342,7 @@ def _plan(shot, *, frame_range=None, size=(960, 540), view="front", color="regio
                          "'no video frame'")
     compositor = Compositor(panels=panels, video_size=(pw[1], h) if video is not None else None,
                             video_name=Path(video).name if video is not None else "",
-                            video_rate=vid.rate if vid is not None else 0.0, burnin=burnin)
+                            video_rate=vid.rate if vid is not None else 0.0, burnin=o.burnin)
 
     def jobs():
         b_iter = other_frames.at(alignment.times) if other is not None else None
@@ -426,9 +399,7 @@ def _video_frames(vid, index, present):
 
 
 def register_cli(subparsers) -> None:
-    from ..cli import add_common_options
-    from ..playblast.panel import COLORS
-    from ..preview.camera import VIEW_CHOICES
+    from ..cliargs import add_common_options, add_options
 
     p = subparsers.add_parser(
         "playblast", help="render a shot to an H.264 movie (browser-playable mp4), side by side or beside its video",
@@ -440,43 +411,12 @@ def register_cli(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("shot", help="shot stage (OUTDIR/shot.usda) or any layer with a face mesh")
     p.add_argument("-o", "--output", required=True, help="movie to write (.mp4)")
-    p.add_argument("--range", nargs=2, type=int, metavar=("FIRST", "LAST"), dest="frame_range",
-                   help="time codes to play, inclusive (default: the whole shot)")
-    p.add_argument("--size", default="960x540", help="movie frame WIDTHxHEIGHT, even numbers (default 960x540)")
-    p.add_argument("--view", choices=VIEW_CHOICES, default="front", help="camera (the list preview shares)")
-    p.add_argument("--turntable-period", type=float, default=6.0, metavar="SECONDS",
-                   help="--view turntable: seconds per swing (default 6)")
-    p.add_argument("--perspective", action="store_true", help="perspective camera (default orthographic)")
-    p.add_argument("--stabilized", action="store_true",
-                   help="without the head motion on the face's root (the face as the transfer moved it)")
-    p.add_argument("--color", choices=COLORS, default="regions",
-                   help="surface colour: regions, displacement from rest, error against --reference, hybrid weight")
-    p.add_argument("--reference", help="shot or layer with reference points (for --color error)")
-    p.add_argument("--markers", action="store_true", help="draw the capture markers")
-    p.add_argument("--bound", action="store_true", help="draw the markers' bound surface points")
-    p.add_argument("--labels", action="store_true", help="write marker names (implies the markers' positions)")
-    p.add_argument("--no-burnin", dest="burnin", action="store_false", help="no shot/method/frame/timecode text")
-    p.add_argument("--no-legend", dest="legend", action="store_false", help="no region legend or colour bar")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--compare", metavar="SHOT", help="a second shot side by side on the right")
-    g.add_argument("--video", metavar="PATH", help="the shot's source video side by side on the right")
-    p.add_argument("--supersample", type=int, default=1, metavar="K", help="anti-aliasing factor 1..4 (default 1)")
-    p.add_argument("--workers", type=int, metavar="N", help="render workers (default: the usable cores)")
-    p.add_argument("--parallel", choices=["threads", "processes"], default="threads",
-                   help="how workers run (default threads: the renderer releases the GIL)")
-    p.add_argument("--crf", type=int, default=18, help="x264 quality, 0 (lossless) .. 51 (default 18)")
-    p.add_argument("--preset", default="veryfast",
-                   choices=["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower"],
-                   help="x264 speed preset (default veryfast)")
+    add_options(p, PlayblastOptions)
     add_common_options(p)
     p.set_defaults(func=_cmd_playblast)
 
 
 def _cmd_playblast(args) -> dict:
-    return playblast(args.shot, args.output, frame_range=args.frame_range, size=parse_size(args.size),
-                     view=args.view, color=args.color, markers=args.markers, bound=args.bound, labels=args.labels,
-                     burnin=args.burnin, legend=args.legend, compare=args.compare, video=args.video,
-                     reference=args.reference, supersample=args.supersample, workers=args.workers,
-                     parallel=args.parallel, crf=args.crf, preset=args.preset,
-                     turntable_period=args.turntable_period,
-                     projection="perspective" if args.perspective else "orthographic", stabilized=args.stabilized)
+    from ..cliargs import options_from_args
+
+    return playblast(args.shot, args.output, options_from_args(PlayblastOptions, args))

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..errors import InputError, OptionError
 from ..fileutil import probe_writable_folder
+from ..options import PlayblastOptions
 
 __all__ = ["batch_report", "register_cli", "report"]
 
@@ -128,8 +129,8 @@ def report(outdir, output, *, playblast=True, playblast_size=(640, 360), playbla
 
             tmp_media = Path(tempfile.mkdtemp(prefix=f".{_media_name(out)}.tmp-", dir=out.parent))
             movie_name = f"{d.name.replace('/', '_')}.mp4"
-            make_playblast(d.shot, tmp_media / movie_name, size=playblast_size, color=playblast_color,
-                           workers=workers)
+            make_playblast(d.shot, tmp_media / movie_name,
+                           PlayblastOptions(size=playblast_size, color=playblast_color, workers=workers))
             movie = f"{_media_name(out)}/{movie_name}"
         elif playblast:
             p = Path(playblast)
@@ -240,7 +241,8 @@ def batch_report(summary, output=None, *, playblasts=False, workers=None) -> dic
             movie = None
             if tmp_media is not None:
                 name = d.name.replace("/", "_") + ".mp4"
-                make_playblast(d.shot, tmp_media / name, size=(480, 270), color="displacement", workers=workers)
+                make_playblast(d.shot, tmp_media / name, PlayblastOptions(size=(480, 270), color="displacement",
+                                                                          workers=workers))
                 movie = f"{_media_name(out)}/{name}"
             add_shot_section(page, d, shot_pictures(d, reader), anchor=anchor, movie=movie,
                              movie_caption="playblast" if movie else "")
@@ -256,7 +258,7 @@ def batch_report(summary, output=None, *, playblasts=False, workers=None) -> dic
 
 
 def register_cli(subparsers) -> None:
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "report", help="a self-contained HTML QC report of a run's output folder (plots, pictures, playblast)",
@@ -279,8 +281,6 @@ def register_cli(subparsers) -> None:
 
 
 def _cmd_report(args) -> dict:
-    from .playblast import parse_size
-
     pb = False if args.no_playblast else (args.playblast or True)
-    return report(args.outdir, args.output, playblast=pb, playblast_size=parse_size(args.playblast_size),
-                  workers=args.workers)
+    size = PlayblastOptions(size=args.playblast_size).size  # checked as the playblast's --size
+    return report(args.outdir, args.output, playblast=pb, playblast_size=size, workers=args.workers)
