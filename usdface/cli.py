@@ -346,6 +346,8 @@ PLUGIN_COMMANDS = (
     "usdface.processors.skel",
     "usdface.processors.acquisition",
     "usdface.processors.tissue",
+    "usdface.processors.solve",
+    "usdface.processors.shapes",
 )
 
 
