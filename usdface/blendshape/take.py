@@ -112,7 +112,16 @@ def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | No
     from ..capture.retarget import marker_displacements
     from ..units import scale_between
 
+    from ..errors import MarkerError
+
     warnings: list[str] = []
+    extra = [n for n in capture.names if n not in binding.names]
+    missing = [n for n in binding.names if n not in capture.names]
+    if extra or missing:
+        raise MarkerError(f"capture {capture.source} and the binding have different markers: "
+                          + "; ".join(p for p in (f"not in the capture: {list_names(missing)}" if missing else "",
+                                                  f"not in the binding: {list_names(extra)}" if extra else "") if p)
+                          + "; bind this capture (usdface bind) or use the capture the binding was made for")
     disp = marker_displacements(capture, binding.names, binding.displacement_transform())  # mesh units
     basis = marker_basis(rig, binding)
     to_cm = scale_between(rig.units, "cm") if rig.units else 1.0

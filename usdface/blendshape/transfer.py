@@ -164,8 +164,102 @@ def _sided_closest(target: FaceMesh, target_regions, generic: FaceMesh, generic_
     return tris[tri_all], bary_all, dist_all
 
 
+def _rim_params(points, rim):
+    """Normalised arc length (0 at the rim's first vertex, 1 at its last) of a rim polyline."""
+    seg = np.linalg.norm(np.diff(points[rim], axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    return s / max(s[-1], 1e-300)
+
+
+def _oriented_rims(points, loop):
+    """(upper, lower) rims of a hole loop, each ordered from its smallest-x corner to its largest."""
+    from ..evaluation.quality import loop_rims
+
+    out = []
+    for rim in loop_rims(points, loop):
+        out.append(rim if points[rim[0], 0] <= points[rim[-1], 0] else rim[::-1])
+    return out
+
+
+def _matching_holes(generic_regions, target_regions, generic_points, target_points):
+    """Pairs (generic loop, target loop) of the mouth and of each eye (matched by side)."""
+    def holes(regions, points):
+        mouth = [r for r in regions if r.role == "mouth" and r.loop is not None]
+        eyes = [r for r in regions if r.role == "eye" and r.loop is not None]
+        mid = 0.5 * (points[:, 0].min() + points[:, 0].max())
+        out = {"mouth": mouth[0].loop} if mouth else {}
+        for r in eyes:
+            out["leftEye" if points[r.loop, 0].mean() > mid else "rightEye"] = r.loop
+        return out
+
+    g = holes(generic_regions, generic_points)
+    t = holes(target_regions, target_points)
+    return [(g[k], t[k]) for k in ("mouth", "leftEye", "rightEye") if k in g and k in t]
+
+
+def refine_hole_correspondence(generic: FaceMesh, generic_regions, registered_points, target: FaceMesh,
+                               target_regions, *, radius_cm: float = 1.5) -> tuple[np.ndarray, dict]:
+    """Slide the registered generic so its mouth and eye loops lie on the target's, rim by rim.
+
+    The registration leaves the holes free (no data term near them), so a lip can slide along the
+    target surface by a few millimetres (0.35 cm on the stylized face's upper lip), which moves the
+    shapes' strongest motion to the wrong place. Each rim (upper / lower, corner to corner) of a
+    generic loop is put onto the same rim of the target loop at equal normalised arc length; the
+    correction is spread over the surface by harmonic interpolation on the generic's edge graph
+    (so the upper lip follows the upper rim, across the slit from the lower one), fading to zero
+    ``radius_cm`` away from the loop, and the moved vertices are projected back onto the target.
+
+    Returns
+    -------
+    points : ndarray (N, 3)
+    info : dict ``holes`` (loops matched), ``meanShift`` (mesh units)
+    """
+    from scipy.sparse.linalg import spsolve
+    from scipy.spatial import cKDTree
+
+    from ..mesh.closest import SurfaceLocator
+    from ..units import scale_between
+
+    reg = np.asarray(registered_points, dtype=np.float64)
+    pairs = _matching_holes(generic_regions, target_regions, reg, target.points)
+    if not pairs:
+        return reg, {"holes": 0, "meanShift": 0.0}
+    n = reg.shape[0]
+    fixed = {}
+    for g_loop, t_loop in pairs:
+        for g_rim, t_rim in zip(_oriented_rims(reg, g_loop), _oriented_rims(target.points, t_loop)):
+            sg = _rim_params(reg, g_rim)
+            st = _rim_params(target.points, t_rim)
+            want = np.stack([np.interp(sg, st, target.points[t_rim, c]) for c in range(3)], axis=1)
+            for v, w in zip(g_rim, want):
+                fixed.setdefault(int(v), []).append(w)
+    loop_v = np.array(sorted(fixed), dtype=np.int64)
+    delta_loop = np.array([np.mean(fixed[v], axis=0) for v in loop_v]) - reg[loop_v]
+    cm = scale_between("cm", generic.units) if generic.units else 1.0
+    dist, _ = cKDTree(reg[loop_v]).query(reg)
+    inner = np.flatnonzero((dist < radius_cm * cm) & ~np.isin(np.arange(n), loop_v))
+    zero = np.flatnonzero(dist >= radius_cm * cm)
+    tris = generic.triangles()
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    adj = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    adj = ((adj + adj.T) > 0).astype(np.float64)
+    lap = sp.diags(np.asarray(adj.sum(axis=1)).ravel()) - adj
+    delta = np.zeros((n, 3))
+    delta[loop_v] = delta_loop
+    if inner.size:
+        known = np.concatenate([loop_v, zero])
+        a_ii = lap[inner][:, inner].tocsc()
+        rhs = -lap[inner][:, known] @ delta[known]
+        delta[inner] = np.stack([spsolve(a_ii, rhs[:, c]) for c in range(3)], axis=1)
+    moved = reg + delta
+    touched = np.concatenate([loop_v, inner])
+    _, _, proj, _ = SurfaceLocator(target.points, target.triangles()).closest(moved[touched])
+    moved[touched] = proj
+    return moved, {"holes": len(pairs), "meanShift": float(np.linalg.norm(moved - reg, axis=1)[touched].mean())}
+
+
 def transfer_rig(generic: BlendShapeRig, generic_regions, registered_points, target: FaceMesh, target_regions, *,
-                 method: str = "deformation") -> RigTransfer:
+                 method: str = "displacement", refine_holes: bool = True) -> RigTransfer:
     """The generic rig on the target mesh (see the module docstring).
 
     Parameters
@@ -187,13 +281,18 @@ def transfer_rig(generic: BlendShapeRig, generic_regions, registered_points, tar
     if generic.units and target.units and generic.units != target.units:
         raise MeshError(f"generic rig in {generic.units}, target mesh {target.source or target.name} in "
                         f"{target.units}: convert one first")
+    hole_info = {"holes": 0, "meanShift": 0.0}
+    if refine_holes:
+        registered_points, hole_info = refine_hole_correspondence(generic.mesh, generic_regions, registered_points,
+                                                                  target, target_regions)
     reg_deltas, scale = shapes_on_registration(generic, registered_points, method=method)
     tri_v, bary, dist = _sided_closest(target, target_regions, generic.mesh, generic_regions, registered_points)
     deltas = np.einsum("nj,knjd->knd", bary, reg_deltas[:, tri_v])
     rig = BlendShapeRig(generic.names, deltas, target, source=f"{generic.source} transferred ({method})",
                         notes=generic.notes + (f"transferred from {generic.source} by {method} transfer",))
     info = {"method": method, "similarityScale": scale, "distanceMedian": float(np.median(dist)),
-            "distanceMax": float(dist.max())}
+            "distanceMax": float(dist.max()), "holeLoopsMatched": hole_info["holes"],
+            "holeShiftMean": hole_info["meanShift"]}
     return RigTransfer(rig, reg_deltas, dist, scale, info)
 
 
