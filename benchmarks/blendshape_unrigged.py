@@ -72,6 +72,9 @@ def main(argv=None) -> int:
     truth_mean = np.linalg.norm(truth, axis=2).mean(axis=1)
     markers = np.einsum("mj,fmjd->fmd", binding.barycentrics, truth[:, binding.triangle_vertices])
     header = "| | " + " | ".join(REGIONS) + " |\n|---|" + "---|" * len(REGIONS)
+    header2 = "| | " + " | ".join(REGIONS) + " | jawOpen mouth (cm) |\n|---|" + "---|" * (len(REGIONS) + 1)
+    j = names.index("jawOpen")
+    mouth_col = REGION_NAMES.index("mouth")
 
     methods = ["displacement", "deformation"] if args.method == "both" else [args.method]
     rigs = {}
@@ -94,10 +97,15 @@ def main(argv=None) -> int:
             print(_row(f"`shapes transfer --method {m}` ({time.perf_counter() - t0:.1f} s)",
                        _pct(mean_e, truth_mean)[cols]))
     print("\n## 2. Expressions rebuilt from the 41 markers (error vs the copied expression)\n")
-    print(header)
+    print(header2)
+
+    def report(label, pred):
+        err = shape_errors(pred, truth, masks)[0]
+        print(_row(label, _pct(err, truth_mean)[cols])[:-2] + f" | {err[j, mouth_col]:.3f} |")
+
     rbf = setup.predict(TransferConfig("hybrid", pin="upper"), markers)
     rbf_solver = setup.transfer(TransferConfig("hybrid", pin="upper"))
-    print(_row("RBF transfer (hybrid, interpolate: `usdface run`)", _pct(shape_errors(rbf, truth, masks)[0], truth_mean)[cols]))
+    report("RBF transfer (hybrid, interpolate: `usdface run`)", rbf)
 
     def solve_with(rig, leave_out: bool, corrective: bool):
         basis = marker_basis(rig, binding)
@@ -116,14 +124,11 @@ def main(argv=None) -> int:
     cases = [("copied rig (the upper bound)", copied, False, False)]
     for m in methods:
         cases += [(f"solve, {m}-transferred rig", rigs[m], False, False),
+                  (f"solve + corrective, {m}-transferred rig", rigs[m], False, True),
                   (f"solve, {m}-transferred rig, expression left out", rigs[m], True, False),
                   (f"solve + corrective, {m}-transferred rig, expression left out", rigs[m], True, True)]
     for label, rig, loo, corr in cases:
-        pred = solve_with(rig, loo, corr)
-        print(_row(label, _pct(shape_errors(pred, truth, masks)[0], truth_mean)[cols]))
-    j = names.index("jawOpen")
-    print("\njawOpen mouth-region mean error (cm): RBF "
-          f"{shape_errors(rbf[j:j + 1], truth[j:j + 1], masks)[0][0, REGION_NAMES.index('mouth')]:.3f}")
+        report(label, solve_with(rig, loo, corr))
     return 0
 
 
