@@ -64,7 +64,6 @@ def main(argv=None) -> int:
     regions = find_hole_regions(target)
     copied = copy_through_topology(generic, target)
     names, truth, _ = select_shapes(copied.names, copied.deltas)
-    idx = [copied.index(n) for n in names]
     binding = binding_from_layout(target, read_layout(a / "layouts/makehuman_hm08_face_stylized.layout.json"))
     setup = TransferSetup(target, regions, binding)
     masks = [setup.regions[r] for r in REGION_NAMES]
@@ -84,7 +83,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for m in methods:
             t0 = time.perf_counter()
-            s = transfer_shapes(a / "meshes/makehuman_hm08_face_stylized_cm.obj", Path(tmp) / f"{m}.usdc",
+            transfer_shapes(a / "meshes/makehuman_hm08_face_stylized_cm.obj", Path(tmp) / f"{m}.usdc",
                                 generic=a / "meshes/makehuman_hm08_face_cm.obj",
                                 generic_shapes=a / "meshes/makehuman_hm08_face_units_cm.npz",
                                 generic_landmarks=a / "landmarks/makehuman_hm08_face.landmarks.layout.json",

@@ -44,16 +44,11 @@ def test_jaw_take_curves(jaw):
     assert w.min() >= 0 and w.max() <= 1
     layer = read_curves_layer(out / "jaw.usdc")
     assert np.abs(layer["weights"] - w).max() < 1e-5  # one set of curves in every output
-    # jawOpen peaks inside the wide-open hold (Chin displaced by more than 80% of its maximum)
-    from usdface.capture.retarget import marker_displacements  # noqa: F401 (the hold comes from the capture below)
-    from usdface.io.captures import read_capture
-
     assert summary["headMotion"] is True
     ll = (out / "jaw_ll.csv").read_text().splitlines()
     assert ll[0].startswith("Timecode,BlendShapeCount,EyeBlinkLeft") and len(ll) == 1591
     times, pts = evaluate_curves_layer(out / "jaw.usdc", times=[0.0, 400.0])
     assert np.abs(pts[0] - pts[1]).max() > 2.0  # the jaw opens by centimetres in UsdSkel's evaluation
-    _ = read_capture
 
 
 @pytest.mark.parametrize("take", ["Jaw", "Eyebrows", "Nose"])
@@ -198,3 +193,38 @@ def test_solve_shot_on_run_layers(tmp_path, sample_assets):
     _, shot = evaluate_curves_layer(tmp_path / "shot_blendshapes.usda", times=[100.0])
     _, alone = evaluate_curves_layer(tmp_path / "blendshapes.usdc", times=[100.0])
     assert np.allclose(shot, alone)
+
+
+def test_capture_markers_must_match_the_binding(sample_assets, makehuman):
+    from usdface.blendshape.take import solve_take
+    from usdface.errors import MarkerError
+    from usdface.mesh.binding import bind_layout
+    from usdface.mesh.layout import read_layout
+    from usdface.usd.capture_layer import read_capture_layer
+
+    cap = read_capture_layer(sample_assets / "capture" / "NoseMoCap.usdc")
+    binding = bind_layout(makehuman["mesh"], read_layout(sample_assets / "layouts" / "makehuman_hm08_face.layout.json"),
+                          cap)
+    extra = cap.replace(names=cap.names + ("Ear_L",),
+                        positions=np.concatenate([cap.positions, cap.positions[:, :1]], axis=1))
+    with pytest.raises(MarkerError, match="not in the binding: Ear_L"):
+        solve_take(makehuman["rig"], extra, binding)
+    fewer = cap.replace(names=cap.names[1:], positions=cap.positions[:, 1:])
+    with pytest.raises(MarkerError, match=f"not in the capture: {cap.names[0]}"):
+        solve_take(makehuman["rig"], fewer, binding)
+
+
+def test_reduced_keys_are_the_same_curves_in_every_output(tmp_path, sample_assets, rig_args):
+    from usdface.blendshape.csvio import read_curves_csv
+    from usdface.usd.blendshape_layer import head_motion_of_layer, read_curves_layer
+
+    out = tmp_path / "k.usdc"
+    assert cli("solve", *rig_args, "--capture", sample_assets / "capture" / "NoseMoCap.ma", "-o", out, "--csv",
+               tmp_path / "k.csv", "--fps", "25", "--key-tolerance", "0.02", "--no-head-motion", "-q") == 0
+    layer = read_curves_layer(out)
+    names, frames, w, rate = read_curves_csv(tmp_path / "k.csv")
+    assert rate == pytest.approx(25.0) and layer["rate"] == 25.0
+    assert layer["times"].size < frames.size  # fewer samples than frames
+    interp = np.stack([np.interp(frames, layer["times"], layer["weights"][:, k]) for k in range(len(names))], axis=1)
+    assert np.abs(interp - w).max() < 2e-6  # USD's linear interpolation gives the CSV's curves
+    assert head_motion_of_layer(out) is None

@@ -1,7 +1,7 @@
 """UsdSkel blend-shape layers: written and posed by UsdSkel's own queries; rigs read as DCCs export them."""
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+from pxr import Gf, Usd, UsdGeom, UsdSkel, Vt
 
 from usdface.errors import FormatError, MeshError
 from usdface.usd.blendshape_layer import (evaluate_curves_layer, head_motion_of_layer, read_blendshape_rig,

@@ -176,7 +176,8 @@ def _corrective_points(take, rig, regions, binding, *, method="hybrid"):
     cm = scale_between("cm", rig.units) if rig.units else 1.0
     dm, _ = _compute(rig.mesh, regions, binding, rig.source, method, "graph", "error", "auto", "upper", 1.0, 2.0,
                      0.6, cm)
-    solver, info = build_transfer_solver(rig.mesh, binding, dm)
+    # frames without any valid marker: the curves bridge them; the corrective adds nothing there
+    solver, info = build_transfer_solver(rig.mesh, binding, dm, all_invalid="zero")
     fit = np.einsum("fk,mkd->fmd", take.weights, take.basis)
     residual = take.displacements - fit  # NaN where invalid: the transfer re-solves those frames
     posed = rig.evaluate(take.weights)
