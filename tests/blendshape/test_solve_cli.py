@@ -228,3 +228,35 @@ def test_reduced_keys_are_the_same_curves_in_every_output(tmp_path, sample_asset
     interp = np.stack([np.interp(frames, layer["times"], layer["weights"][:, k]) for k in range(len(names))], axis=1)
     assert np.abs(interp - w).max() < 2e-6  # USD's linear interpolation gives the CSV's curves
     assert head_motion_of_layer(out) is None
+
+
+def test_corrective_points_shot_hits_the_markers(tmp_path, sample_assets):
+    from pxr import Usd, UsdGeom
+
+    from usdface.capture.retarget import marker_displacements
+    from usdface.io.meshes import read_mesh
+    from usdface.mesh.binding import bind_layout
+    from usdface.mesh.layout import read_layout
+    from usdface.processors.import_capture import condition_capture, load_capture
+    from usdface.processors.solve import solve
+
+    layout = sample_assets / "layouts" / "makehuman_hm08_face.layout.json"
+    s = solve(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj", sample_assets / "capture" / "NoseMoCap.ma",
+              tmp_path / "nose.usdc", shapes=sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz",
+              layout=layout, corrective=True, trim=(400, 560))
+    shot = tmp_path / "nose_corrective.usdc"
+    assert s["corrective"]["output"] == str(shot)
+    cap, _ = condition_capture(load_capture(sample_assets / "capture" / "NoseMoCap.ma"), trim=(400, 560),
+                               stabilize="auto")
+    mesh = read_mesh(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")
+    binding = bind_layout(mesh, read_layout(layout), cap)
+    d = marker_displacements(cap, binding.names, binding.displacement_transform())
+    stage = Usd.Stage.Open(str(shot))
+    assert not stage.GetRootLayer().subLayerPaths and stage.GetStartTimeCode() == 0
+    pts = UsdGeom.Mesh(stage.GetPrimAtPath("/Face/Geom")).GetPointsAttr()
+    worst = 0.0
+    for f in (0, 60, 120, 159):
+        p = np.asarray(pts.Get(Usd.TimeCode(f)), dtype=np.float64)
+        hit = binding.surface_points(p) - binding.surface_points(mesh.points)
+        worst = max(worst, float(np.abs(hit - d[f]).max()))
+    assert worst < 1e-3  # the residual the rig leaves (up to ~0.5 cm) is transferred: markers hit

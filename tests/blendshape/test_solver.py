@@ -24,6 +24,12 @@ def small(makehuman):
     return basis, take, pairs, pidx
 
 
+@pytest.fixture(scope="module")
+def reference(small):
+    basis, take, _, pidx = small
+    return solve_reference(basis, take.displacements, rate=60.0, pair_indices=pidx)
+
+
 def test_dct_diagonalises_the_neumann_laplacian():
     import scipy.fft as sfft
 
@@ -34,11 +40,11 @@ def test_dct_diagonalises_the_neumann_laplacian():
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_sparse_pass_reaches_the_reference_minimiser(small, backend):
+def test_sparse_pass_reaches_the_reference_minimiser(small, reference, backend):
     basis, take, pairs, pidx = small
     solver = CurveSolver(basis, names=SUBSET, symmetric_pairs=pairs, refit=False)
     sol = solver.solve(take.displacements, rate=60.0, tolerance=1e-5, max_iterations=20000, backend=backend)
-    ref = solve_reference(basis, take.displacements, rate=60.0, pair_indices=pidx)
+    ref = reference
     kw = dict(rate=60.0, pair_indices=pidx)
     e_ours, e_ref = objective(sol.weights, basis, take.displacements, **kw), objective(ref, basis, take.displacements, **kw)
     assert sol.converged

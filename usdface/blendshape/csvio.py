@@ -39,7 +39,8 @@ import numpy as np
 from ..errors import FormatError, InputError, list_names
 
 __all__ = ["LIVE_LINK_FACE_SHAPES", "LIVE_LINK_FACE_ROTATIONS", "write_curves_csv", "read_curves_csv",
-           "curves_csv_text", "live_link_face_text", "live_link_timecode", "head_angles"]
+           "curves_csv_text", "live_link_face_text", "live_link_timecode", "head_angles", "check_arkit_names",
+           "missing_arkit_shapes"]
 
 #: the 52 ARKit shapes in the order the Live Link Face app writes its CSV columns
 LIVE_LINK_FACE_SHAPES = (
@@ -165,6 +166,22 @@ def _arkit_lookup(rig_names) -> dict:
     return by_key
 
 
+def missing_arkit_shapes(names) -> list[str]:
+    """ARKit shapes (camelCase) of the Live Link Face CSV that ``names`` lacks."""
+    lookup = _arkit_lookup(names)
+    return [a[:1].lower() + a[1:] for a in LIVE_LINK_FACE_SHAPES if a[:1].lower() + a[1:] not in lookup]
+
+
+def check_arkit_names(names, *, fill_missing: bool = False, source: str = "the rig") -> list[str]:
+    """Raise InputError (unless ``fill_missing``) when ``names`` lacks ARKit shapes; returns them."""
+    missing = missing_arkit_shapes(names)
+    if missing and not fill_missing:
+        raise InputError(f"--livelink: {source} lacks {len(missing)} of the 52 ARKit shapes the Live Link Face CSV "
+                         f"needs: {list_names(missing)}; rename its shapes to ARKit names, or pass "
+                         "--livelink-fill-zeros to write zeros for them")
+    return missing
+
+
 def live_link_face_text(names, values, *, rate: float, head_motion=None, fill_missing: bool = False,
                         source: str = "the rig") -> tuple[str, dict]:
     """The Live Link Face CSV of curves ``values`` (F, K) over the rig's shape ``names``.
@@ -183,19 +200,9 @@ def live_link_face_text(names, values, *, rate: float, head_motion=None, fill_mi
         ``missing`` (ARKit shapes written as zeros) and ``unused`` (rig shapes with no ARKit column).
     """
     v = np.asarray(values, dtype=np.float64)
+    missing = check_arkit_names(names, fill_missing=fill_missing, source=source)
     lookup = _arkit_lookup(names)
-    cols, missing = [], []
-    for arkit in LIVE_LINK_FACE_SHAPES:
-        key = arkit[:1].lower() + arkit[1:]
-        if key in lookup:
-            cols.append(lookup[key])
-        else:
-            cols.append(-1)
-            missing.append(key)
-    if missing and not fill_missing:
-        raise InputError(f"--livelink: {source} lacks {len(missing)} of the 52 ARKit shapes the Live Link Face CSV "
-                         f"needs: {list_names(missing)}; rename its shapes to ARKit names, or pass "
-                         "--livelink-fill-zeros to write zeros for them")
+    cols = [lookup.get(a[:1].lower() + a[1:], -1) for a in LIVE_LINK_FACE_SHAPES]
     used = {c for c in cols if c >= 0}
     unused = [n for i, n in enumerate(names) if i not in used]
     angles = head_angles(head_motion) if head_motion is not None else np.zeros((v.shape[0], 3))

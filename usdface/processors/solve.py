@@ -240,6 +240,10 @@ def solve(mesh, capture, output, *, shapes=None, layout=None, auto=False, csv=No
         if path is not None and not Path(path).is_file():
             raise InputError(f"{label} {path}: no such file")
     rig, regions = load_rig(mesh, shapes, mesh_units=mesh_units)
+    if livelink is not None:  # fail before the work, not after it
+        from ..blendshape.csvio import check_arkit_names
+
+        check_arkit_names(rig.names, fill_missing=livelink_fill_zeros, source=f"the rig {rig.source}")
     cap = load_capture(capture, units=units, rate=rate, up_axis=up_axis)
     cap, reports = condition_capture(cap, trim=trim, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff,
                                      resample=resample, neutral=neutral, stabilize=stabilize, start_frame=start_frame)
@@ -247,7 +251,8 @@ def solve(mesh, capture, output, *, shapes=None, layout=None, auto=False, csv=No
     take = solve_take(rig, cap, binding, head_motion=head_motion, **opts)
     curves = deliverable_curves(rig.names, take.weights, rate=take.rate, fps=fps, key_tolerance=key_tolerance,
                                 head_motion=take.head_motion)
-    start_out = int(round(take.start_frame * curves.rate / take.rate))
+    # D2: time code = frame index from 0 (a trimmed take too) unless --start-frame says otherwise
+    start_out = 0 if start_frame is None else int(round(start_frame * curves.rate / take.rate))
     options = {**{k: (list(v) if isinstance(v, tuple) else v) for k, v in opts.items()}, "fps": fps,
                "key_tolerance": key_tolerance, "head_motion": take.head_motion is not None, "retarget": retarget,
                "stabilize": stabilize, "trim": trim, "fill_gaps": fill_gaps, "filter": filter, "resample": resample,
@@ -375,6 +380,10 @@ def apply_curves(curves, mesh, output, *, shapes=None, mesh_units=None, csv=None
         names, frames, values, rate = read_curves_csv(cp)
         start = int(frames[0])
     rig, regions = load_rig(mesh, shapes, mesh_units=mesh_units)
+    if livelink is not None:
+        from ..blendshape.csvio import check_arkit_names
+
+        check_arkit_names(rig.names, fill_missing=livelink_fill_zeros, source=f"the rig {rig.source}")
     shared = [n for n in names if n in rig.names]
     if not shared:
         raise InputError(f"--apply {cp}: none of its {len(names)} curves ({list_names(names)}) names a shape of the "
@@ -424,6 +433,9 @@ def solve_shot(mesh_path, capture_path, binding_path, out_dir, *, shapes=None, m
     shapes : path, optional
         The rig's shapes (``.npz``, folder of OBJs, or a USD rig matching the mesh); None when
         ``mesh_path`` itself has blend shapes.
+
+    Time codes start at the capture layer's start frame (``run`` writes it from 0, or from its
+    ``--start-frame``: decision D2).
 
     Returns
     -------
