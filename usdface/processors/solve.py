@@ -299,19 +299,25 @@ def _bind(mesh, capture, *, layout, auto, retarget):
 
 
 def _summary(take, curves, rig, binding, outs, reports) -> dict:
+    """The JSON summary; residuals in cm (the mesh's units converted)."""
+    from ..units import scale_between
+
     sol = take.solution
-    fin = np.isfinite(sol.residual)
-    units = rig.units or "units"
+    to_cm = scale_between(rig.units, "cm") if rig.units else 1.0
+    residual, still, per_marker = sol.residual * to_cm, sol.still_residual * to_cm, sol.marker_rms * to_cm
+    fin = np.isfinite(residual)
+    units = "cm" if rig.units else "units"
     return {
         "output": str(outs["-o"]), "frames": int(sol.n_frames), "rate": take.rate, "deliveredFrames":
             int(curves.values.shape[0]), "deliveredRate": curves.rate, "shapes": rig.n_shapes,
-        "markers": binding.n_markers, "units": units,
-        "residual": [None if not np.isfinite(r) else round(float(r), 5) for r in sol.residual],
-        "residualMean": float(np.mean(sol.residual[fin])) if fin.any() else None,
-        "residualMax": float(np.max(sol.residual[fin])) if fin.any() else None,
-        "stillResidualMean": float(np.mean(sol.still_residual[fin])) if fin.any() else None,
+        "markers": binding.n_markers, "units": units,  # of the residuals below
+        "meshUnits": rig.units,
+        "residual": [None if not np.isfinite(r) else round(float(r), 5) for r in residual],
+        "residualMean": float(np.mean(residual[fin])) if fin.any() else None,
+        "residualMax": float(np.max(residual[fin])) if fin.any() else None,
+        "stillResidualMean": float(np.mean(still[fin])) if fin.any() else None,
         "markerResidual": {n: (None if not np.isfinite(v) else round(float(v), 5))
-                           for n, v in zip(binding.names, sol.marker_rms)},
+                           for n, v in zip(binding.names, per_marker)},
         "weightMax": {n: round(float(v), 4) for n, v in zip(rig.names, sol.weights.max(axis=0))},
         "iterations": int(sol.iterations), "converged": bool(sol.converged),
         "solveSeconds": round(float(sol.seconds), 4), "solver": sol.summary(),
