@@ -219,6 +219,8 @@ PLUGIN_COMMANDS = (
     "usdface.processors.tissue",
     "usdface.processors.playblast",
     "usdface.processors.report",
+    "usdface.processors.solve",
+    "usdface.processors.shapes",
 )
 
 

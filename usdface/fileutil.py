@@ -427,3 +427,61 @@ def probe_writable_folder(path: str | os.PathLike, *, what: str) -> Path:
     os.close(fd)
     os.unlink(probe)
     return folder
+
+
+class StagedOutputs:
+    """Write several output files so that either all of them appear or none does.
+
+    Each output is written to a temporary name in its own folder (same suffix, so format-by-suffix
+    writers such as USD work); :meth:`commit` renames them all into place, and leaving the
+    ``with`` block on an error removes every temporary. A crash between two renames of
+    :meth:`commit` can still leave a subset (renames are atomic one by one, not as a group).
+
+    Examples
+    --------
+    >>> with StagedOutputs() as staged:                     # doctest: +SKIP
+    ...     write_layer(staged.path("out/curves.usdc"))
+    ...     write_text(staged.path("out/curves.csv"), text)
+    ...     staged.commit()
+    """
+
+    def __init__(self) -> None:
+        self._pairs: list[tuple[Path, Path]] = []
+        self.committed = False
+
+    def path(self, final: str | os.PathLike) -> Path:
+        p = Path(final)
+        tmp = temporary_path(p)  # names its owner, so a dead owner's leftovers can be tidied
+        self._pairs.append((tmp, p))
+        return tmp
+
+    def commit(self) -> None:
+        try:
+            for tmp, final in self._pairs:
+                fsync_file(tmp)
+                set_default_mode(tmp)  # temporaries may come out 0600
+            for tmp, final in self._pairs:
+                inject_fault("replace", final)
+                os.replace(tmp, final)
+                fsync_dir(final.parent)
+        except OSError as exc:
+            raise write_error(getattr(exc, "filename", None) or self._pairs[0][1], exc) from None
+        self.committed = True
+
+    def __enter__(self) -> "StagedOutputs":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        for tmp, _ in self._pairs:
+            try:
+                tmp.unlink()
+            except FileNotFoundError:
+                pass
+        return False
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically (:func:`atomic_write`)."""
+    with atomic_write(path) as f:
+        f.write(text)
+    return Path(path)

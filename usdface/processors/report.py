@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 from ..errors import InputError, OptionError
-from ..fileutil import probe_writable_folder
+from ..fileutil import probe_writable_folder, write_text_atomic
 from ..options import PlayblastOptions
 
 __all__ = ["batch_report", "register_cli", "report"]
@@ -32,32 +32,6 @@ def _check_output(output) -> Path:
 
 def _media_name(out: Path) -> str:
     return f"{out.stem}_media"
-
-
-def _write_text_atomic(path: Path, text: str) -> None:
-    from ..fileutil import fsync_dir
-
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    except OSError as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        if exc.errno == 28:
-            from ..errors import ResourceError
-
-            raise ResourceError(f"cannot write report {path}: disk full") from None
-        raise InputError(f"cannot write report {path}: {exc.strerror or exc}") from None
-    fsync_dir(path.parent)
 
 
 def _commit_folder(tmp: Path, final: Path) -> None:
@@ -77,7 +51,7 @@ def _finish(page, out: Path, tmp_media: Path | None) -> None:
     text = page.render()
     if tmp_media is not None:
         _commit_folder(tmp_media, out.parent / _media_name(out))
-    _write_text_atomic(out, text)
+    write_text_atomic(out, text)
 
 
 def shot_pictures(d, reader) -> dict:
