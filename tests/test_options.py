@@ -41,7 +41,7 @@ def test_no_stabilize_and_output_kind_aliases():
     assert _run_options("--no-stabilize").stabilize is None
     assert RunOptions(stabilize=False).stabilize is None
     assert _run_options("--output-kind", "skel,points").output_kind == ("points", "skel")
-    assert RunOptions(output_kind="all").output_kind == ("points", "skel")
+    assert RunOptions(output_kind="all").output_kind == ("points", "skel", "blendshapes")
 
 
 @pytest.mark.parametrize("kwargs, message", [

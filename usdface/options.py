@@ -30,7 +30,7 @@ from .units import METERS_PER_UNIT
 
 __all__ = [
     "CaptureOptions", "BindOptions", "DistanceOptions", "TransferOptions", "SkelOptions", "VideoOptions",
-    "RunOptions", "PlayblastOptions", "OUTPUT_KINDS", "option_fields", "flag_of",
+    "SolveOptions", "RunOptions", "PlayblastOptions", "OUTPUT_KINDS", "option_fields", "flag_of",
 ]
 
 UNITS = tuple(METERS_PER_UNIT)
@@ -38,7 +38,7 @@ METHODS = ("euclidean", "geodesic", "hybrid")
 BACKENDS = ("graph", "heat", "exact")
 KERNELS = ("gaussian", "multiquadric", "inverse_multiquadric", "thin_plate_spline", "cubic")
 #: deliverables `run` can write, in the order they are written
-OUTPUT_KINDS = ("points", "skel")
+OUTPUT_KINDS = ("points", "skel", "blendshapes")
 #: aliases of --output-kind lists
 OUTPUT_ALIASES = {"both": ("points", "skel"), "all": OUTPUT_KINDS}
 
@@ -261,7 +261,7 @@ def option(default, *, flag: str, help: str, coerce: Callable | None = None, gro
 
 #: order of the option groups in `--help`
 GROUP_ORDER = ("mesh", "capture reading and conditioning", "binding", "video capture", "distances", "transfer",
-               "deliverables", "skeleton", "frames", "look", "side by side", "encoding")
+               "deliverables", "skeleton", "blend-shape solve", "curves", "frames", "look", "side by side", "encoding")
 
 
 def option_fields(cls) -> list:
@@ -433,6 +433,59 @@ class SkelOptions(_Options):
                                  group="skeleton", help="joints per vertex ('all' keeps every weight)")
 
 
+def _patterns(value, flag):
+    """Comma-separated shape-name globs; 'none' (or empty) for no pattern."""
+    if value is None:
+        return ()
+    if isinstance(value, str):
+        value = [] if value.strip().lower() in ("", "none") else value.split(",")
+    if not isinstance(value, (list, tuple)):
+        raise OptionError(f"{flag} {_show(value)}: expected comma-separated shape names or globs, or 'none'")
+    return tuple(str(v).strip() for v in value if str(v).strip())
+
+
+@dataclass(frozen=True)
+class SolveOptions(_Options):
+    """The blend-shape solve (`solve`, `run --output-kind blendshapes`)."""
+
+    shapes: str | None = option(None, flag="--shapes", coerce=_path, metavar="DIR|NPZ|RIG.usd",
+                                group="blend-shape solve",
+                                help="the rig's shapes for a neutral mesh: a folder of <shape>.obj, an .npz (names, "
+                                     "deltas[, neutral]) or a USD rig (not needed when the mesh is a USD mesh with "
+                                     "UsdSkel blend shapes)")
+    smoothing: float = option(6.0, flag="--smoothing", coerce=_nonnegative_float, metavar="HZ",
+                              group="blend-shape solve", help="temporal smoothness cut-off in Hz (0: none)")
+    sparsity: float = option(0.01, flag="--sparsity", coerce=_nonnegative_float, metavar="BETA",
+                             group="blend-shape solve", help="L1 weight picking few shapes per frame, cm^2")
+    symmetry: float = option(0.05, flag="--symmetry", coerce=_nonnegative_float, metavar="GAMMA",
+                             group="blend-shape solve",
+                             help="left/right prior on ...Left/...Right pairs whose deltas mirror each other (0: none)")
+    exclude: tuple = option(("eyeLook*", "tongueOut"), flag="--exclude", coerce=_patterns, metavar="PATTERNS",
+                            group="blend-shape solve",
+                            help="shapes held at 0, comma-separated globs (markers see neither gaze nor tongue; "
+                                 "'none' solves every shape)")
+    refit: bool = option(True, flag="--no-refit", coerce=_flag, group="blend-shape solve",
+                         help="skip the second pass that refits the active shapes without the sparsity shrinkage")
+    max_iterations: int = option(300, flag="--max-iterations", coerce=_positive_int, metavar="N",
+                                 group="blend-shape solve", help="ADMM iterations at most")
+    tolerance: float = option(2e-3, flag="--tolerance", coerce=_positive_float, metavar="CM",
+                              group="blend-shape solve", help="ADMM stopping tolerance (cm)")
+    fps: float | None = option(None, flag="--fps", coerce=_positive_float, metavar="FPS", group="curves",
+                               help="deliver the curves at this rate (24, 25, 30...) instead of the capture's")
+    key_tolerance: float | None = option(None, flag="--key-tolerance", coerce=_nonnegative_float, metavar="W",
+                                         group="curves",
+                                         help="reduce keys: each curve stays within W (weight units) of the solved one")
+    livelink_fill_zeros: bool = option(False, flag="--livelink-fill-zeros", coerce=_flag, group="curves",
+                                       help="Live Link CSV: zeros for ARKit shapes the rig lacks (default: an error "
+                                            "naming them)")
+
+    def solver_kwargs(self) -> dict:
+        """The keyword arguments of the solver (usdface.processors.solve SOLVER_DEFAULTS)."""
+        return dict(smoothing_hz=self.smoothing or None, sparsity=self.sparsity, symmetry=self.symmetry,
+                    exclude=self.exclude, refit=self.refit, max_iterations=self.max_iterations,
+                    tolerance=self.tolerance)
+
+
 @dataclass(frozen=True)
 class VideoOptions(_Options):
     """Tracking a video of painted dots inside `run`."""
@@ -444,7 +497,8 @@ class VideoOptions(_Options):
 
 
 @dataclass(frozen=True)
-class RunOptions(CaptureOptions, BindOptions, DistanceOptions, TransferOptions, SkelOptions, VideoOptions):
+class RunOptions(CaptureOptions, BindOptions, DistanceOptions, TransferOptions, SkelOptions, SolveOptions,
+                 VideoOptions):
     """Everything `usdface run` (and a batch shot, and :func:`usdface.api.run`) takes besides its
     inputs and output folder. Defaults are the main job's."""
 
@@ -461,8 +515,12 @@ class RunOptions(CaptureOptions, BindOptions, DistanceOptions, TransferOptions, 
     output_kind: tuple = option(("points",), flag="--output-kind", coerce=_output_kinds, metavar="KIND[,KIND]",
                                 group="deliverables",
                                 help="what to deliver, a comma list: points (time-sampled mesh points, anim.usdc), "
-                                     "skel (UsdSkel keyframes, skel.usdc); 'all' for every kind ('both' = "
-                                     "points,skel)")
+                                     "skel (UsdSkel keyframes, skel.usdc), blendshapes (weight curves on a "
+                                     "blend-shape rig, blendshapes.usdc + curves.csv; needs --shapes or a USD mesh "
+                                     "with blend shapes); 'all' for every kind ('both' = points,skel)")
+    livelink: bool = option(False, flag="--livelink", coerce=_flag, group="deliverables",
+                            help="blendshapes: also write curves_livelink.csv in the layout of Unreal's Live Link "
+                                 "Face app (ARKit names and order)")
     head_motion: bool = option(True, flag="--no-head-motion", coerce=_flag, group="deliverables",
                                help="drop the head motion removed by stabilisation (by default every deliverable "
                                     "carries it as a time-sampled transform on the face's root prim /Face)")

@@ -115,7 +115,7 @@ def test_bad_inputs_write_nothing(tmp_path, sample_assets, rig_args, capsys):
     # the output may not replace an input
     assert cli("solve", *rig_args, "--capture", tmp_path / "short.csv", "-o", out / "c.usdc",
                "--csv", tmp_path / "short.csv", "-q") == 2
-    assert "outputs never replace inputs" in capsys.readouterr().err
+    assert "would overwrite the input" in capsys.readouterr().err
     assert list(out.iterdir()) == []
 
 

@@ -24,29 +24,41 @@ def is_video(path) -> bool:
     return p.suffix.lower() in MOVIE_SUFFIXES or is_sequence_pattern(str(path)) or p.is_dir()
 
 
-def output_files(output_kind=("points",), *, video: bool = False) -> tuple:
+def output_files(output_kind=("points",), *, video: bool = False, livelink: bool = False) -> tuple:
     """The files a run writes into OUTDIR for the deliverables ``output_kind`` (RunOptions.output_kind)."""
     kinds = tuple(output_kind)
     files = ["mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc"]
-    if "points" in kinds:
-        files.append("anim.usdc")
-    if "skel" in kinds:
-        files.append("skel.usdc")
+    for kind in kinds:
+        files.append(DELIVERABLE_LAYERS[kind])
+    if "blendshapes" in kinds:
+        files += ["curves.csv"] + (["curves_livelink.csv"] if livelink else [])
     if video:
         files.append("tracks.usdc")
     files += [shot for shot, _ in shot_stages(kinds)] + ["summary.json"]
     return tuple(files)
 
 
+#: the layer each deliverable kind writes, and its shot stage when it is not the first kind
+DELIVERABLE_LAYERS = {"points": "anim.usdc", "skel": "skel.usdc", "blendshapes": "blendshapes.usdc"}
+DELIVERABLE_SHOTS = {"points": "shot.usda", "skel": "shot_skel.usda", "blendshapes": "shot_blendshapes.usda"}
+
+
 def shot_stages(output_kind) -> list[tuple[str, str]]:
     """(shot stage, deliverable layer) pairs: the first deliverable's shot is shot.usda."""
-    layers = {"points": "anim.usdc", "skel": "skel.usdc"}
-    names = {"points": "shot.usda", "skel": "shot_skel.usda"}
-    kinds = list(output_kind)
-    out = []
-    for i, kind in enumerate(kinds):
-        out.append(("shot.usda" if i == 0 else names[kind], layers[kind]))
-    return out
+    return [("shot.usda" if i == 0 else DELIVERABLE_SHOTS[kind], DELIVERABLE_LAYERS[kind])
+            for i, kind in enumerate(output_kind)]
+
+
+def _check_rig(mesh, o: RunOptions) -> None:
+    """--output-kind blendshapes needs a rig: --shapes, or a USD mesh with UsdSkel blend shapes."""
+    from .solve import load_rig
+
+    try:
+        load_rig(mesh, o.shapes, mesh_units=o.mesh_units)
+    except UsdFaceError as exc:
+        hint = "" if o.shapes else (" (--output-kind blendshapes and all solve weight curves on a blend-shape rig; "
+                                    "without one, list the kinds you want, e.g. --output-kind points,skel)")
+        raise type(exc)(f"{exc}{hint}") from None
 
 
 def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cache=None) -> dict:
@@ -110,12 +122,14 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
     from .transfer import parse_stiffness
 
     parse_stiffness(o.stiffness)  # a bad --stiffness fails now, not after the distances
-    files = output_files(kinds, video=video)
+    if "blendshapes" in kinds:
+        _check_rig(mesh, o)  # before any work
+    files = output_files(kinds, video=video, livelink=o.livelink)
     from ..shot_commit import ShotSession, check_run_paths, run_id
 
     stiffness_file = o.stiffness if isinstance(o.stiffness, str) and Path(o.stiffness).is_file() else None
     inputs = {"--mesh": mesh, "--capture": capture, "--layout": o.layout, "--seeds": o.seeds,
-              "--stiffness": stiffness_file}
+              "--stiffness": stiffness_file, "--shapes": o.shapes}
     check_run_paths(out, files, inputs)  # no output is an input, before any work
     prov = run_provenance(mesh, capture, o)
     created = [d for d in [out, *out.parents] if not d.exists()]
@@ -170,10 +184,25 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
             steps["skel"] = skel(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], f["analysis.usdc"],
                                  f["skel.usdc"], max_influences=o.max_influences, head_motion=o.head_motion,
                                  **transfer_options)
+        if "blendshapes.usdc" in f:
+            from .solve import solve_shot
+
+            # the rig: the imported mesh with --shapes (same points), else the input mesh's own blend shapes
+            steps["blendshapes"] = solve_shot(f["mesh.usdc"] if o.shapes else mesh, f["capture.usdc"],
+                                              f["binding.usda"], work, shapes=o.shapes, mesh_units=o.mesh_units,
+                                              fps=o.fps, key_tolerance=o.key_tolerance, head_motion=o.head_motion,
+                                              livelink=o.livelink, livelink_fill_zeros=o.livelink_fill_zeros,
+                                              files=("blendshapes.usdc", None, "curves.csv"), **o.solver_kwargs())
         cap = steps["import-capture"]
         record = session.record(files)  # the shot stages list every file's sha256 and provenance id
-        for shot_name, motion in shot_stages(kinds):
-            write_shot_stage(f[shot_name], layers=[f[motion], f["analysis.usdc"], f["binding.usda"]],
+        for shot_name, layer in shot_stages(kinds):
+            if layer == "blendshapes.usdc":  # its own rate and range when the curves were resampled (--fps)
+                st = steps["blendshapes"]["shotStage"]
+                write_shot_stage(f[shot_name], layers=[f[layer], f["binding.usda"]], rate=st["rate"],
+                                 start=st["start"], end=st["end"], units=steps["import-mesh"]["units"],
+                                 stabilized_capture=st["stabilizedCapture"], record=record)
+                continue
+            write_shot_stage(f[shot_name], layers=[f[layer], f["analysis.usdc"], f["binding.usda"]],
                              rate=cap["rate"], start=cap["startTimeCode"],
                              end=cap["startTimeCode"] + cap["frames"] - 1, units=steps["import-mesh"]["units"],
                              # markers follow the face: head-stabilised unless the head motion is delivered
@@ -212,7 +241,8 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
         _remove_created(created, out)
     summary = json.loads(text)
     b = summary["steps"]["bind"]
-    tr = summary["steps"].get("transfer") or summary["steps"]["skel"]
+    tr = summary["steps"].get("transfer") or summary["steps"].get("skel")
+    bs = summary["steps"].get("blendshapes")
     summary["_text"] = [
         f"shot: {out / 'shot.usda'}  ({summary['frames']} frames at {summary['rate']:g} Hz, "
         f"{summary['vertices']} vertices, {summary['markers']} markers)",
@@ -222,9 +252,11 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
         f"{b['residualMedian']:.3f} max {b['residualMax']:.3f} {b['units']}",
         f"  distances: {o.method}{'/' + o.backend if o.method != 'euclidean' else ''} in "
         f"{summary['steps']['distances']['seconds']:.2f} s",
-        f"  transfer: {tr['mode']} {tr['kernel']}, {tr['seconds']:.2f} s"
-        + (f", width {tr['widthMedian']:.3g} {tr['units']}" if "widthMedian" in tr else ""),
-    ] + ([f"  video: {summary['steps']['track']['frames']} frames tracked, "
+    ] + ([f"  transfer: {tr['mode']} {tr['kernel']}, {tr['seconds']:.2f} s"
+          + (f", width {tr['widthMedian']:.3g} {tr['units']}" if "widthMedian" in tr else "")] if tr else []) \
+      + ([f"  blend shapes: {bs['shapes']} shapes, marker residual mean {bs['residualMean'] or float('nan'):.3f} "
+          f"(a still face: {bs['stillResidualMean'] or float('nan'):.3f}), curves at {bs['shotStage']['rate']:g} fps"]
+         if bs else []) + ([f"  video: {summary['steps']['track']['frames']} frames tracked, "
           f"{100 * summary['steps']['track']['validFraction']:.1f}% of marker samples found, lifted with depth "
           f"{summary['steps']['lift']['depth']}"] if video else []) \
       + ([f"  skeleton: {summary['steps']['skel']['joints']} joints, "
@@ -247,7 +279,8 @@ def _remove_created(created, out: Path) -> None:
 def _next_step(done, *, video: bool, output_kind) -> str:
     """The step after ``done`` (the one that failed), for error messages."""
     order = ["import-mesh"] + (["track", "lift"] if video else []) + ["import-capture", "bind", "distances"]
-    order += (["transfer"] if "points" in output_kind else []) + (["skel"] if "skel" in output_kind else [])
+    order += (["transfer"] if "points" in output_kind else []) + (["skel"] if "skel" in output_kind else []) \
+        + (["blendshapes"] if "blendshapes" in output_kind else [])
     order.append("shot")
     return order[0] if done is None else order[min(order.index(done) + 1, len(order) - 1)]
 

@@ -154,7 +154,7 @@ def transfer_shapes(target, output, *, generic=None, generic_shapes=None, generi
 
 def register_cli(sub) -> None:
     """Add `usdface shapes transfer` to the CLI (`rig` already names the muscle rig)."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = sub.add_parser("shapes", help="blend-shape rigs: transfer a generic rig onto a face without one",
                        description="Blend-shape rig tools.")

@@ -434,8 +434,8 @@ def solve_shot(mesh_path, capture_path, binding_path, out_dir, *, shapes=None, m
         made on that mesh).
     out_dir : path
         Where ``files`` go: the curves layer, a shot stage composing it with the binding layer
-        (markers shown with the face), and the curves CSV; ``livelink=True`` adds
-        ``curves_livelink.csv``.
+        (markers shown with the face; None: not written, the summary's ``shotStage`` says its
+        rate and range), and the curves CSV; ``livelink=True`` adds ``curves_livelink.csv``.
     shapes : path, optional
         The rig's shapes (``.npz``, folder of OBJs, or a USD rig matching the mesh); None when
         ``mesh_path`` itself has blend shapes.
@@ -487,10 +487,13 @@ def solve_shot(mesh_path, capture_path, binding_path, out_dir, *, shapes=None, m
                                  start_frame=start_out, prov=prov, report=report, staged=staged)
         # the shot names the final files (relative paths): written last, after the layers exist
         staged.commit()
-    write_shot_stage(out / shot_name, layers=[outs["-o"], Path(binding_path)], rate=curves.rate, start=start_out,
-                     end=start_out + n - 1, units=rig.units,
-                     stabilized_capture=cap.head_motion is not None and take.head_motion is None)
-    res["files"]["shot"] = str(out / shot_name)
+    summary["shotStage"] = {"rate": curves.rate, "start": start_out, "end": start_out + n - 1, "units": rig.units,
+                            "stabilizedCapture": cap.head_motion is not None and take.head_motion is None}
+    if shot_name is not None:  # (`run` writes the shot itself, with the record of the whole commit)
+        write_shot_stage(out / shot_name, layers=[outs["-o"], Path(binding_path)], rate=curves.rate, start=start_out,
+                         end=start_out + n - 1, units=rig.units,
+                         stabilized_capture=cap.head_motion is not None and take.head_motion is None)
+        res["files"]["shot"] = str(out / shot_name)
     summary.update(res)
     summary["seconds"] = round(time.perf_counter() - t0, 3)
     summary["_text"] = _text(summary, outs)
@@ -499,37 +502,15 @@ def solve_shot(mesh_path, capture_path, binding_path, out_dir, *, shapes=None, m
 
 # -- CLI ----------------------------------------------------------------------------------------
 
-def _solver_arguments(p) -> None:
-    g = p.add_argument_group("solver")
-    g.add_argument("--smoothing", type=float, default=DEFAULT_SMOOTHING_HZ, metavar="HZ",
-                   help=f"temporal smoothness cut-off in Hz (default {DEFAULT_SMOOTHING_HZ:g}; 0: none)")
-    g.add_argument("--sparsity", type=float, default=DEFAULT_SPARSITY, metavar="BETA",
-                   help=f"L1 weight picking few shapes per frame, cm^2 (default {DEFAULT_SPARSITY:g})")
-    g.add_argument("--symmetry", type=float, default=DEFAULT_SYMMETRY, metavar="GAMMA",
-                   help=f"left/right prior on mirror pairs, relative (default {DEFAULT_SYMMETRY:g}; 0: none)")
-    g.add_argument("--exclude", default=",".join(DEFAULT_EXCLUDE), metavar="PATTERNS",
-                   help=f"shapes held at 0, comma-separated globs (default {','.join(DEFAULT_EXCLUDE)}: markers see "
-                        "neither gaze nor tongue; 'none' solves every shape)")
-    g.add_argument("--no-refit", dest="refit", action="store_false",
-                   help="skip the second pass that refits the active shapes without the sparsity shrinkage")
-    g.add_argument("--max-iterations", type=int, default=DEFAULT_MAX_ITERATIONS, metavar="N")
-    g.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE, help="ADMM stopping tolerance (cm)")
-
-
-def _delivery_arguments(p) -> None:
-    g = p.add_argument_group("delivery")
-    g.add_argument("--csv", metavar="CURVES.csv", help="also write the curves as CSV: frame,time,<shape names>")
-    g.add_argument("--livelink", metavar="FILE.csv", help="also write the Live Link Face CSV layout (ARKit names)")
-    g.add_argument("--livelink-fill-zeros", action="store_true",
-                   help="write zeros for ARKit shapes the rig lacks (default: an error naming them)")
-    g.add_argument("--fps", type=float, metavar="FPS", help="deliver at this rate (24, 25, 30...) instead of the capture's")
-    g.add_argument("--key-tolerance", type=float, metavar="W",
-                   help="reduce keys: each curve stays within W (weight units) of the solved one")
+#: options of `usdface run` that `solve` takes too (capture conditioning, binding, head motion)
+_RUN_OPTIONS = ("units", "rate", "up_axis", "stabilize", "fill_gaps", "filter", "cutoff", "trim", "start_frame",
+                "resample", "neutral", "retarget", "layout", "auto", "mesh_units", "head_motion")
 
 
 def register_cli(sub) -> None:
     """Add `usdface solve` to the CLI."""
-    from ..cli import _capture_options, add_common_options
+    from ..cliargs import add_common_options, add_options
+    from ..options import RunOptions, SolveOptions
 
     p = sub.add_parser("solve", help="marker capture -> blend-shape weight curves on a rig (CURVES.usdc, CSV)",
                        description="Solve a capture's stabilised marker motion as blend-shape weights in [0, 1] for "
@@ -538,53 +519,38 @@ def register_cli(sub) -> None:
                                    "animation that imports alone in DCCs. --apply plays curves on another rig.")
     p.add_argument("--mesh", required=True,
                    help="a USD mesh with UsdSkel blend shapes, or a neutral mesh (OBJ, USD...) given with --shapes")
-    p.add_argument("--shapes", metavar="DIR|NPZ|RIG.usd",
-                   help="the neutral's shapes: folder of <shape>.obj, .npz (names, deltas[, neutral]) or a USD rig")
     p.add_argument("--capture", help="capture (Maya ASCII, C3D, TRC, CSV or a capture layer)")
     p.add_argument("--apply", metavar="CURVES.csv|CURVES.usdc",
                    help="instead of solving: apply these curves to --mesh (shapes matched by name)")
-    src = p.add_mutually_exclusive_group()
-    src.add_argument("--layout", help="marker layout JSON (usdface-layout/1)")
-    src.add_argument("--auto", action="store_true", help="bind by aligning the neutral marker cloud")
-    p.add_argument("--mesh-units", choices=["mm", "cm", "dm", "m", "in", "ft"], help="units of the mesh file")
-    p.add_argument("--retarget", choices=["displacement", "similarity"], default="displacement")
-    p.add_argument("--corrective", nargs="?", const=True, metavar="POINTS.usdc",
+    groups = add_options(p, RunOptions, only=set(_RUN_OPTIONS))
+    add_options(p, SolveOptions, groups=groups)
+    g = p.add_argument_group("outputs")
+    g.add_argument("--csv", metavar="CURVES.csv", help="also write the curves as CSV: frame,time,<shape names>")
+    g.add_argument("--livelink", dest="livelink_csv", metavar="FILE.csv",
+                   help="also write the Live Link Face CSV layout (ARKit names)")
+    g.add_argument("--corrective", nargs="?", const=True, metavar="POINTS.usdc",
                    help="also write a points shot: the rig's pose plus the RBF transfer of the residual (markers hit "
                         "exactly); default name <output>_corrective.usdc")
-    p.add_argument("--no-head-motion", dest="head_motion", action="store_false",
-                   help="no head motion on /Face (the stabilised face only)")
-    _solver_arguments(p)
-    _delivery_arguments(p)
-    _capture_options(p)
-    p.set_defaults(stabilize="auto")
-    p.add_argument("--no-stabilize", dest="stabilize", action="store_const", const=None,
-                   help="keep the head motion in the marker displacements (no head motion on /Face)")
     p.add_argument("-o", "--output", required=True, help="curves layer to write (.usdc)")
     add_common_options(p)
     p.set_defaults(func=_cmd_solve)
 
 
 def _cmd_solve(args) -> dict:
-    from ..cli import _neutral_arg, _stabilize_arg
+    from ..cliargs import options_from_args
+    from ..options import CaptureOptions, RunOptions
 
+    o = options_from_args(RunOptions, args)
+    curves_out = dict(shapes=o.shapes, mesh_units=o.mesh_units, csv=args.csv, livelink=args.livelink_csv,
+                      livelink_fill_zeros=o.livelink_fill_zeros, fps=o.fps, key_tolerance=o.key_tolerance)
     if args.apply is not None:
-        extra = [o for o, v in (("--capture", args.capture), ("--layout", args.layout), ("--auto", args.auto),
-                                ("--corrective", args.corrective)) if v]
+        extra = [flag for flag, given in (("--capture", args.capture), ("--layout", o.layout), ("--auto", o.auto),
+                                          ("--corrective", args.corrective)) if given]
         if extra:
             raise OptionError(f"--apply plays existing curves: {', '.join(extra)} do not apply")
-        return apply_curves(args.apply, args.mesh, args.output, shapes=args.shapes, mesh_units=args.mesh_units,
-                            csv=args.csv, livelink=args.livelink, livelink_fill_zeros=args.livelink_fill_zeros,
-                            fps=args.fps, key_tolerance=args.key_tolerance)
+        return apply_curves(args.apply, args.mesh, args.output, **curves_out)
     if args.capture is None:
         raise OptionError("solve: give --capture CAPTURE (or --apply CURVES to play curves on a rig)")
-    return solve(args.mesh, args.capture, args.output, shapes=args.shapes, layout=args.layout, auto=args.auto,
-                 csv=args.csv, livelink=args.livelink, livelink_fill_zeros=args.livelink_fill_zeros,
-                 corrective=args.corrective, fps=args.fps, key_tolerance=args.key_tolerance,
-                 head_motion=args.head_motion, retarget=args.retarget, mesh_units=args.mesh_units, units=args.units,
-                 rate=args.rate, up_axis=args.up_axis, stabilize=_stabilize_arg(args.stabilize),
-                 fill_gaps=args.fill_gaps, filter=args.filter, cutoff=args.cutoff, trim=args.trim,
-                 neutral=_neutral_arg(args.neutral), resample=args.resample, start_frame=args.start_frame,
-                 smoothing_hz=args.smoothing or None, sparsity=args.sparsity, symmetry=args.symmetry,
-                 exclude=args.exclude, refit=args.refit, max_iterations=args.max_iterations,
-                 tolerance=args.tolerance)
-
+    return solve(args.mesh, args.capture, args.output, layout=o.layout, auto=bool(o.auto),
+                 corrective=args.corrective, head_motion=o.head_motion, retarget=o.retarget, **curves_out,
+                 **o.group(CaptureOptions).to_dict(), **o.solver_kwargs())
