@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -125,6 +126,102 @@ def _gap_frames(disp: np.ndarray) -> np.ndarray:
     return np.flatnonzero(~np.isfinite(disp).all(axis=(1, 2)))
 
 
+@dataclass(frozen=True)
+class SkelInputs:
+    """What the skeleton is built from: the transfer's inputs and results (mesh space, mesh units).
+
+    Attributes
+    ----------
+    mesh, capture, binding, dm : the loaded inputs (:func:`load_transfer_inputs`)
+    solver, info : the fitted transfer (:func:`build_transfer_solver`)
+    effective : ndarray (F, M, 3)
+        Marker displacements reproducing every frame through B (:func:`effective_displacements`).
+    effective_info : dict
+    gap_frames : ndarray of int
+        Frames where some marker is missing.
+    bound_points : ndarray (M, 3)
+    head_motion : ndarray (F, 4, 4) or None
+        H_mesh(f) relative to the neutral frame (None: the capture was not stabilised).
+    """
+
+    mesh: object
+    capture: object
+    binding: object
+    dm: object
+    solver: object
+    info: dict
+    effective: np.ndarray
+    effective_info: dict
+    gap_frames: np.ndarray
+    bound_points: np.ndarray
+    head_motion: np.ndarray | None
+
+    @property
+    def transfer_matrix(self) -> np.ndarray:
+        return self.solver.transfer_matrix
+
+    def point_cache(self, frames=slice(None), *, world: bool = True) -> np.ndarray:
+        """(F, N, 3) the transfer's point cache (float64), moved by the head motion when ``world``."""
+        pts = self.mesh.points[None] + apply_matrix(self.transfer_matrix, self.effective[frames])
+        if world and self.head_motion is not None:
+            hm = self.head_motion[frames]
+            pts = np.matmul(pts, hm[:, :3, :3].transpose(0, 2, 1)) + hm[:, None, :3, 3]
+        return pts
+
+
+def load_skel_inputs(mesh_path, capture_path, binding_path, analysis_path, *, rbf="interpolate",
+                     kernel="gaussian", stiffness=None, regularization="auto", polynomial=False, method=None,
+                     all_invalid="error", max_amplification=DEFAULT_MAX_AMPLIFICATION) -> SkelInputs:
+    """Read the inputs, fit the transfer (`usdface transfer`'s options) and resolve missing markers."""
+    from ..capture.retarget import marker_displacements
+    from ..skel import head_motion_in_mesh_space
+
+    mesh, capture, binding, dm = load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path,
+                                                      method=method)
+    disp = marker_displacements(capture, binding.names, binding.displacement_transform())
+    solver, info = build_transfer_solver(mesh, binding, dm, rbf=rbf, kernel=kernel, stiffness=stiffness,
+                                         regularization=regularization, polynomial=polynomial,
+                                         all_invalid=all_invalid, max_amplification=max_amplification)
+    d_eff, eff_info = effective_displacements(solver, disp)
+    if eff_info["residual"] > 1e-6 * max(1.0, float(np.abs(d_eff).max())):
+        raise ComputeError(f"skel: the re-solved frames are not reproduced through the transfer matrix "
+                           f"(residual {eff_info['residual']:.3g} {mesh.units}); the transfer matrix is rank deficient")
+    hm = None
+    if capture.head_motion is not None:
+        n = capture.neutral_frame
+        rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.head_motion[n]), capture.head_motion)
+        hm = head_motion_in_mesh_space(rel, binding.capture_to_mesh)
+    return SkelInputs(mesh=mesh, capture=capture, binding=binding, dm=dm, solver=solver, info=info,
+                      effective=d_eff, effective_info=eff_info, gap_frames=_gap_frames(disp),
+                      bound_points=binding.surface_points(mesh.points), head_motion=hm)
+
+
+def fit_dcc(inputs: SkelInputs, k, *, skin_fit="rom", n_shapes=None, covariance=None):
+    """The DCC-safe rig of :mod:`usdface.skel.dcc` for these inputs (a :class:`usdface.skel.DccSkin`).
+
+    ``skin_fit``: "rom" (the synthetic range of motion: the character's rig) or "take" (this
+    take's marker motion); ``covariance`` (M, M) overrides both (e.g. another take's
+    :func:`usdface.skel.take_covariance`). The starting weights are Gaussians of the transfer's own
+    distances, with its widths when its kernel is Gaussian (else the default width rule).
+    """
+    from ..rbf.stiffness import DEFAULT_WIDTH_FACTOR, median_marker_spacing_from_points
+    from ..skel import dcc, fit_dcc_skin, initial_weights, rom_covariance, take_covariance
+
+    m = inputs.binding.n_markers
+    bound = inputs.bound_points
+    spacing = median_marker_spacing_from_points(bound)
+    widths = (inputs.solver.widths[:m] if inputs.solver.kernel == "gaussian" else DEFAULT_WIDTH_FACTOR * spacing)
+    w0 = initial_weights(inputs.dm.vertex_to_centre[:, :m], widths)
+    if covariance is None:
+        if skin_fit not in SKIN_FITS:
+            raise OptionError(f"--skin-fit: expected one of {', '.join(SKIN_FITS)}; got {skin_fit!r}")
+        covariance = (rom_covariance(np.linalg.norm(bound[:, None] - bound[None], axis=2)) if skin_fit == "rom"
+                      else take_covariance(inputs.effective))
+    return fit_dcc_skin(inputs.transfer_matrix, w0, k, covariance,
+                        n_shapes=dcc.DEFAULT_SHAPES if n_shapes is None else n_shapes,
+                        shape_offset=dcc.SHAPE_OFFSET_FACTOR * spacing)
+
+
 def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_weights=None,
          max_influences=DEFAULT_MAX_INFLUENCES, skin_fit="rom", corrective_shapes=None, weight_fit="lsq",
          head_motion=True, negative_weights=None, report_influences=REPORT_INFLUENCES, verify=True,
@@ -156,9 +253,7 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
         Deform the written layer with UsdSkel (blend shapes and skinning) and report its world
         space error against the point cache moved by the head motion.
     """
-    from ..capture.retarget import marker_displacements
-    from ..skel import (build_rig, dcc, fit_dcc_skin, full_weights, head_motion_in_mesh_space, initial_weights,
-                        prune_weights, rom_covariance, skinning_error, take_covariance)
+    from ..skel import build_rig, dcc, full_weights, prune_weights, skinning_error
     from ..skel.weights import FIT_METHODS, motion_gram
     from ..usd.skel_layer import skinned_points, write_skel_layer
 
@@ -174,25 +269,14 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
         n_shapes = 0
     report_ks = [_parse_k(v) for v in (report_influences or ())]
     t0 = time.perf_counter()
-    mesh, capture, binding, dm = load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path,
-                                                      method=method)
-    disp = marker_displacements(capture, binding.names, binding.displacement_transform())
-    solver, info = build_transfer_solver(mesh, binding, dm, rbf=rbf, kernel=kernel, stiffness=stiffness,
-                                         regularization=regularization, polynomial=polynomial,
-                                         all_invalid=all_invalid, max_amplification=max_amplification)
-    B = solver.transfer_matrix
+    inputs = load_skel_inputs(mesh_path, capture_path, binding_path, analysis_path, rbf=rbf, kernel=kernel,
+                              stiffness=stiffness, regularization=regularization, polynomial=polynomial,
+                              method=method, all_invalid=all_invalid, max_amplification=max_amplification)
+    mesh, capture, binding, dm, info = inputs.mesh, inputs.capture, inputs.binding, inputs.dm, inputs.info
+    B, d_eff, gaps, eff_info = inputs.transfer_matrix, inputs.effective, inputs.gap_frames, inputs.effective_info
     n_markers = B.shape[1]
-    d_eff, eff_info = effective_displacements(solver, disp)
-    if eff_info["residual"] > 1e-6 * max(1.0, float(np.abs(d_eff).max())):
-        raise ComputeError(f"skel: the re-solved frames are not reproduced through the transfer matrix "
-                           f"(residual {eff_info['residual']:.3g} {mesh.units}); the transfer matrix is rank deficient")
-    gaps = _gap_frames(disp)
-    hm = None
-    if head_motion and capture.head_motion is not None:
-        n = capture.neutral_frame
-        rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.head_motion[n]), capture.head_motion)
-        hm = head_motion_in_mesh_space(rel, binding.capture_to_mesh)
-    bound = binding.surface_points(mesh.points)
+    hm = inputs.head_motion if head_motion else None
+    bound = inputs.bound_points
 
     def key(kk):
         return "all" if kk is None or kk >= n_markers + 1 else str(kk)
@@ -200,18 +284,10 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
     errors, gap_errors = {}, {}
     shapes = shape_weights = None
     if mode == "dcc":
-        from ..rbf.stiffness import DEFAULT_WIDTH_FACTOR, median_marker_spacing_from_points
-
-        widths = (solver.widths[:n_markers] if solver.kernel == "gaussian"
-                  else DEFAULT_WIDTH_FACTOR * median_marker_spacing_from_points(bound))
-        w0 = initial_weights(dm.vertex_to_centre[:, :n_markers], widths)
-        shape_offset = dcc.SHAPE_OFFSET_FACTOR * median_marker_spacing_from_points(bound)
-        cov = (rom_covariance(np.linalg.norm(bound[:, None] - bound[None], axis=2)) if skin_fit == "rom"
-               else take_covariance(d_eff))
         fits = {}
         for kk in [k] + report_ks:
             if key(kk) not in fits:
-                fits[key(kk)] = fit_dcc_skin(B, w0, kk, cov, n_shapes=n_shapes, shape_offset=shape_offset)
+                fits[key(kk)] = fit_dcc(inputs, kk, skin_fit=skin_fit, n_shapes=n_shapes)
         for name, fitted in fits.items():
             errors[name] = dcc.dcc_skinning_error(fitted, B, d_eff)
             if gaps.size:
@@ -259,9 +335,7 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
     usdskel_error = usdskel_gap_error = None
     if verify:
         _, pts = skinned_points(out, space="world")
-        expected = mesh.points[None] + apply_matrix(B, d_eff)
-        if hm is not None:
-            expected = np.einsum("fij,fnj->fni", hm[:, :3, :3], expected) + hm[:, None, :3, 3]
+        expected = inputs.point_cache(world=hm is not None)
         err = np.sqrt(((pts - expected) ** 2).sum(axis=2)).max(axis=1)
         usdskel_error = float(err.max())
         usdskel_gap_error = float(err[gaps].max()) if gaps.size else None
@@ -273,7 +347,7 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
         "pointCacheError": errors, "gapFrameError": gap_errors, "gapFrames": int(gaps.size),
         "usdSkelPointCacheError": usdskel_error, "usdSkelGapFrameError": usdskel_gap_error, "weights": weight_stats,
         "framesResolved": eff_info["framesResolved"], "jointNameMapping": rig.name_mapping,
-        "mode": rbf, "kernel": solver.kernel, "distanceMethod": dm.method,
+        "mode": rbf, "kernel": inputs.solver.kernel, "distanceMethod": dm.method,
         "regularization": info["regularization"], "amplification": info["amplification"],
         "seconds": round(seconds, 3),
     }

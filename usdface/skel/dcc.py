@@ -114,11 +114,12 @@ class DccSkin:
 
     def joint_translations(self, displacements: np.ndarray) -> np.ndarray:
         """(F, M, 3) marker-joint translations for marker displacements (F, M, 3)."""
-        return np.einsum("jm,fmc->fjc", self.joint_map, np.asarray(displacements, dtype=np.float64))
+        return np.matmul(self.joint_map, np.asarray(displacements, dtype=np.float64))
 
     def shape_weights(self, displacements: np.ndarray) -> np.ndarray:
         """(F, S) blend-shape weights in [0, 1] for marker displacements (F, M, 3)."""
-        lin = np.einsum("smc,fmc->fs", self.shape_map, np.asarray(displacements, dtype=np.float64))
+        d = np.asarray(displacements, dtype=np.float64)
+        lin = d.reshape(d.shape[0], -1) @ self.shape_map.reshape(self.shape_map.shape[0], -1).T
         if lin.shape[1] == 0:
             return lin
         return np.clip(lin - np.minimum(lin.min(axis=1, keepdims=True), 0.0), 0.0, 1.0)
@@ -126,10 +127,14 @@ class DccSkin:
     def displacements(self, displacements: np.ndarray) -> np.ndarray:
         """(F, N, 3) vertex displacements the rig gives (numpy linear blend skinning + shapes)."""
         d = np.asarray(displacements, dtype=np.float64)
+        f, m, _ = d.shape
         n = self.shapes.shape[1]
-        dense = self.weights.dense(d.shape[1] + 1)[:, 1:]
-        return (np.einsum("nj,fjc->fnc", dense, self.joint_translations(d))
-                + np.einsum("fs,snc->fnc", self.shape_weights(d), self.shapes.reshape(-1, n, 3)))
+        dense = self.weights.dense(m + 1)[:, 1:]
+        tau = self.joint_translations(d).transpose(1, 0, 2).reshape(m, -1)  # (M, F*3)
+        out = (dense @ tau).reshape(n, f, 3).transpose(1, 0, 2)
+        if self.n_shapes:
+            out = out + (self.shape_weights(d) @ self.shapes.reshape(self.n_shapes, -1)).reshape(f, n, 3)
+        return out
 
 
 def rom_covariance(marker_distances: np.ndarray, *, width: float | None = None,
@@ -204,11 +209,32 @@ def _support(weights: np.ndarray, k: int) -> np.ndarray:
     return np.sort(order, axis=1)
 
 
-def _w_step(b: np.ndarray, p: np.ndarray, cov: np.ndarray, support: np.ndarray,
-            allowed: np.ndarray | None = None, start: np.ndarray | None = None) -> np.ndarray:
-    """Per-vertex simplex least squares of the weights on their support, for joint map P."""
+def solve_weights(transfer_matrix: np.ndarray, joint_map: np.ndarray, covariance: np.ndarray, support: np.ndarray, *,
+                  allowed: np.ndarray | None = None, start: np.ndarray | None = None) -> np.ndarray:
+    """The W-step: each vertex's best weights on its support for a given joint motion.
+
+    Per vertex i, ``min (w P_1 - b_i) Sigma (w P_1 - b_i)^T`` over w >= 0 summing to one on the
+    support, P_1 = P with a zero row prepended (the root never moves).
+
+    Parameters
+    ----------
+    transfer_matrix : ndarray (N, M)
+    joint_map : ndarray (M, M)
+        P (:attr:`DccSkin.joint_map`).
+    covariance : ndarray (M, M)
+    support : ndarray (N, S) int
+        Candidate joints per vertex (0 = root, 1 + m = marker m).
+    allowed, start : see :func:`usdface.skel.simplex_lsq.simplex_lsq` (``start`` as (N, 1 + M)).
+
+    Returns
+    -------
+    ndarray (N, 1 + M): dense weights.
+    """
+    b = np.asarray(transfer_matrix, dtype=np.float64)
+    p = np.asarray(joint_map, dtype=np.float64)
     n, m = b.shape
     a = np.vstack([np.zeros((1, m)), p])  # the root never moves
+    cov = np.asarray(covariance, dtype=np.float64)
     gram = a @ cov @ a.T
     linear = b @ cov @ a.T
     w = simplex_lsq(gram, linear, support, allowed=allowed,
@@ -220,7 +246,7 @@ def _w_step(b: np.ndarray, p: np.ndarray, cov: np.ndarray, support: np.ndarray,
 
 def _objective(b, w, p, cov) -> float:
     e = b - w[:, 1:] @ p
-    return float(np.einsum("nm,mk,nk->", e, cov, e))
+    return float(((e @ cov) * e).sum())
 
 
 def fit_dcc_skin(transfer_matrix: np.ndarray, initial: np.ndarray, k: int | None, covariance: np.ndarray, *,
@@ -286,7 +312,7 @@ def _fit(b, w0, cov, kk, n_shapes, shape_offset, iterations) -> DccSkin:
     p = _joint_map(w[:, 1:], b)
     history = [_objective(b, w, p, cov)]
     for _ in range(max(1, int(iterations))):
-        w = _w_step(b, p, cov, support, start=w)
+        w = solve_weights(b, p, cov, support, start=w)
         p = _joint_map(w[:, 1:], b)
         history.append(_objective(b, w, p, cov))
         if history[-2] - history[-1] <= CONVERGED * history[-2]:
@@ -313,7 +339,7 @@ def _drop_small(b, w, cov, support, *, rounds: int = 3) -> np.ndarray:
         allowed &= ~small
         rows = np.flatnonzero(small.any(axis=1))
         p = _joint_map(w[:, 1:], b)
-        w[rows] = _w_step(b[rows], p, cov, support[rows], allowed[rows])
+        w[rows] = solve_weights(b[rows], p, cov, support[rows], allowed=allowed[rows])
     vals = np.take_along_axis(w, support, axis=1)
     vals[vals < MIN_WEIGHT] = 0.0
     vals /= vals.sum(axis=1, keepdims=True)
@@ -387,7 +413,8 @@ def dcc_skinning_error(skin: DccSkin, transfer_matrix: np.ndarray, displacements
     worst, worst_f, sq, count = 0.0, 0, 0.0, 0
     for a in range(0, d.shape[0], chunk_frames):
         part = d[a:a + chunk_frames]
-        err = skin.displacements(part) - np.einsum("nm,fmc->fnc", b, part)
+        flat = part.transpose(1, 0, 2).reshape(part.shape[1], -1)
+        err = skin.displacements(part) - (b @ flat).reshape(b.shape[0], part.shape[0], 3).transpose(1, 0, 2)
         norm = np.sqrt((err * err).sum(axis=2))  # (f, N)
         fmax = norm.max(axis=1)
         i = int(fmax.argmax())
