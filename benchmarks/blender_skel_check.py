@@ -109,14 +109,20 @@ def main(argv=None) -> int:
     ap.add_argument("--bpy-python", required=True, help="a Python interpreter that can import bpy")
     ap.add_argument("--file", default="skel.usdc", help="the file to import, in OUTDIR (default skel.usdc)")
     ap.add_argument("--frames", type=int, nargs="*", default=[])
+    ap.add_argument("--worst", type=int, default=5, help="also the N frames of largest UsdSkel error (default 5)")
     ap.add_argument("--blender-side", nargs=3, metavar=("USD", "FRAMES", "NPZ"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.blender_side:
         usd, frames, npz = args.blender_side
         blender_side(usd, [int(f) for f in frames.split(",")], npz)
         return 0
+    from usdface.usd.skel_layer import skinned_points
+
     rest, cache, stabilised, chin_frame, start = point_cache(args.outdir)
-    frames = sorted({0, chin_frame, *args.frames})
+    _, usdskel = skinned_points(args.outdir / args.file)
+    usdskel_err = np.linalg.norm(usdskel - cache, axis=2).max(axis=1)
+    worst = [int(f) for f in np.argsort(-usdskel_err)[:args.worst]]
+    frames = sorted({0, chin_frame, *worst, *args.frames})
     with tempfile.TemporaryDirectory() as tmp:
         npz = str(Path(tmp) / "blender.npz")
         subprocess.run([args.bpy_python, __file__, str(args.outdir), "--bpy-python", args.bpy_python,
@@ -133,8 +139,11 @@ def main(argv=None) -> int:
         err = np.linalg.norm(got_usd[i] - cache[f], axis=1)
         still = np.linalg.norm(got_usd[i] - stabilised[f], axis=1).max()
         rest_err = np.linalg.norm(got_usd[i] - rest, axis=1).max()
-        label = "frame 0" if f == 0 else ("largest Chin displacement" if f == chin_frame else "")
+        label = ("frame 0" if f == 0 else "largest Chin displacement" if f == chin_frame
+                 else "large UsdSkel error" if f in worst else "")
+        vs_usdskel = np.linalg.norm(got_usd[i] - usdskel[f], axis=1).max()
         print(f"  frame {f:5d} {label:27s} max {err.max():.4f}  rms {np.sqrt((err ** 2).mean()):.4f}  "
+              f"UsdSkel max {usdskel_err[f]:.4f}  Blender vs UsdSkel {vs_usdskel:.4f}  "
               f"(max distance from the stabilised point cache {still:.4f}, from the mesh at rest {rest_err:.4f}; "
               f"head motion moves the face up to {np.linalg.norm(cache[f] - stabilised[f], axis=1).max():.4f})")
     return 0

@@ -51,6 +51,8 @@ SKIN_WEIGHTS = ("dcc", "exact")
 SKIN_FITS = ("rom", "take")
 #: the deprecated --negative-weights values and the --skin-weights they map to
 NEGATIVE_WEIGHTS_ALIAS = {"keep": "exact", "clamp": "dcc"}
+#: frames deformed by UsdSkel at once when verifying the written layer
+VERIFY_CHUNK = 128
 
 
 def effective_displacements(solver, disp: np.ndarray, *, chunk_frames: int = 64) -> tuple[np.ndarray, dict]:
@@ -334,9 +336,15 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
         bar.close()
     usdskel_error = usdskel_gap_error = None
     if verify:
-        _, pts = skinned_points(out, space="world")
-        expected = inputs.point_cache(world=hm is not None)
-        err = np.sqrt(((pts - expected) ** 2).sum(axis=2)).max(axis=1)
+        from ..usd.layers import open_stage
+
+        stage = open_stage(out, what="skeleton")
+        err = np.empty(capture.n_frames)
+        for a in range(0, capture.n_frames, VERIFY_CHUNK):  # memory: a chunk of frames at a time
+            frames = np.arange(a, min(capture.n_frames, a + VERIFY_CHUNK))
+            _, pts = skinned_points(out, times=(capture.start_frame + frames).tolist(), stage=stage, space="world")
+            expected = inputs.point_cache(frames, world=hm is not None)
+            err[frames] = np.sqrt(((pts - expected) ** 2).sum(axis=2)).max(axis=1)
         usdskel_error = float(err.max())
         usdskel_gap_error = float(err[gaps].max()) if gaps.size else None
     seconds = time.perf_counter() - t0

@@ -32,7 +32,10 @@ with the example poses replaced by a distribution over marker motions:
   (B = Phi A^-1 for the Gaussian interpolant), so P can undo the kernels' smoothing;
 - alternation: P-step ``P = W_m^+ B``; W-step per vertex, the simplex-constrained least squares
   ``min (w P - b_i) Sigma (w P - b_i)^T`` on the vertex's K candidate joints
-  (:func:`usdface.skel.simplex_lsq.simplex_lsq`), Sigma the covariance of the fitting range;
+  (:func:`usdface.skel.simplex_lsq.simplex_lsq`), Sigma the covariance of the fitting range. The
+  K candidates start as the K largest initial weights; each W-step also solves on the 2K largest
+  and keeps the K strongest of that solution where they fit the vertex better (sparse selection
+  that never increases the objective);
 - shapes: the leading left singular vectors u_c of ``(B - W_m P) Sigma^{1/2}``, one direction per
   axis (u_c along x, y or z): C = S - 1 orthonormal correction directions s_c whose per-frame
   coefficients ``alpha_c(f) = <s_c, residual(f)>`` are signed. DCC importers clamp shape weights
@@ -244,6 +247,11 @@ def solve_weights(transfer_matrix: np.ndarray, joint_map: np.ndarray, covariance
     return out
 
 
+def _vertex_objective(b, w, p, cov) -> np.ndarray:
+    e = b - w[:, 1:] @ p
+    return ((e @ cov) * e).sum(axis=1)
+
+
 def _objective(b, w, p, cov) -> float:
     e = b - w[:, 1:] @ p
     return float(((e @ cov) * e).sum())
@@ -305,7 +313,9 @@ def check_shape_count(n_shapes) -> int:
 
 def _fit(b, w0, cov, kk, n_shapes, shape_offset, iterations) -> DccSkin:
     # small dense products: one BLAS thread is faster, and far faster on a loaded machine
+    m1 = w0.shape[1]
     support = _support(w0, kk)
+    pool = _support(w0, min(2 * kk, m1)) if kk < m1 else None
     w = np.zeros_like(w0)
     np.put_along_axis(w, support, np.take_along_axis(w0, support, axis=1), axis=1)
     w /= w.sum(axis=1, keepdims=True)
@@ -313,6 +323,17 @@ def _fit(b, w0, cov, kk, n_shapes, shape_offset, iterations) -> DccSkin:
     history = [_objective(b, w, p, cov)]
     for _ in range(max(1, int(iterations))):
         w = solve_weights(b, p, cov, support, start=w)
+        if pool is not None:
+            # another support per vertex: the K strongest of the weights on twice as many candidates;
+            # a vertex takes it only if it fits better (so the objective never increases)
+            on_pool = solve_weights(b, p, cov, pool, start=w)  # w lives on a subset of the pool
+            other = _support(on_pool, kk)
+            kept = np.zeros_like(on_pool)
+            np.put_along_axis(kept, other, np.take_along_axis(on_pool, other, axis=1), axis=1)
+            w_other = solve_weights(b, p, cov, other, start=kept / kept.sum(axis=1, keepdims=True))
+            better = _vertex_objective(b, w_other, p, cov) < _vertex_objective(b, w, p, cov)
+            w[better] = w_other[better]
+            support[better] = other[better]
         p = _joint_map(w[:, 1:], b)
         history.append(_objective(b, w, p, cov))
         if history[-2] - history[-1] <= CONVERGED * history[-2]:
