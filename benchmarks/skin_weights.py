@@ -15,6 +15,8 @@ Rigs (weights, joint mapping and corrective shapes are fitted once, then applied
 - dcc/<take>: DCC-safe weights fitted on one take's marker motion;
 - exact/<take>: the signed transfer-matrix weights, pruned to K and refitted on one take (K = all:
   no pruning, the same for every take).
+dcc rigs carry 16 corrective blend shapes, except the dcc/rom rows with 0 shapes (what the
+translation-only joints reach alone).
 K = 4, 8 and all (every joint). "fit" marks the take a rig was fitted on (others are unseen takes).
 
 Gap frames: each take again with 5% of its marker samples dropped in runs of 10-60 frames (fixed
@@ -121,6 +123,7 @@ class Rig:
 
     def __init__(self, mode, source, k, fit=None, weights=None):
         self.mode, self.source, self.k, self.fit, self.weights = mode, source, k, fit, weights
+        self.shapes = fit.n_shapes if fit is not None else 0
 
     def write(self, path, inputs, mesh_path):
         from usdface.skel import build_rig
@@ -182,6 +185,8 @@ def main(argv=None) -> int:
         t1 = time.perf_counter()
         rigs.append(Rig("dcc", "rom", k, fit=fit_dcc(inputs[args.takes[0]], k, skin_fit="rom")))
         fit_seconds[f"dcc/rom K={k or 'all'}"] = time.perf_counter() - t1
+    for k in KS:  # what translation-only joints reach without the corrective shapes
+        rigs.append(Rig("dcc", "rom", k, fit=fit_dcc(inputs[args.takes[0]], k, skin_fit="rom", n_shapes=0)))
     for src in args.takes:
         for k in KS:
             t1 = time.perf_counter()
@@ -196,7 +201,7 @@ def main(argv=None) -> int:
 
     rows = []
     for rig in rigs:
-        row = {"mode": rig.mode, "fit": rig.source, "K": rig.k or "all", "takes": {}}
+        row = {"mode": rig.mode, "fit": rig.source, "K": rig.k or "all", "shapes": rig.shapes, "takes": {}}
         for t in args.takes:
             err = usdskel_error(rig, inputs[t], files[t]["mesh"], caches[t], tmp)
             gerr = usdskel_error(rig, gapped[t], files[t]["mesh"], gap_caches[t], tmp)
@@ -227,15 +232,15 @@ def main(argv=None) -> int:
           + ", ".join(f"{x} {v:.2f} cm" for x, v in motion.items()) + ".")
     print()
     head = " | ".join(f"{x} max / rms | {x} gap frames max" for x in t)
-    print(f"| weights | fitted on | K | {head} |")
-    print("|---|---|---|" + "---|---|" * len(t))
+    print(f"| weights | fitted on | K | shapes | {head} |")
+    print("|---|---|---|---|" + "---|---|" * len(t))
     for r in rows:
         cells = []
         for x in t:
             v = r["takes"][x]
             mark = " (fit)" if r["fit"] == x else ""
             cells.append(f"{v['max']:.3f} / {v['rms']:.4f}{mark} | {v['gapMax']:.3f}")
-        print(f"| {r['mode']} | {r['fit']} | {r['K']} | " + " | ".join(cells) + " |")
+        print(f"| {r['mode']} | {r['fit']} | {r['K']} | {r['shapes']} | " + " | ".join(cells) + " |")
     print()
     print("Fit times (s, 2020 vertices, 41 markers): "
           + ", ".join(f"{name} {sec:.2f}" for name, sec in fit_seconds.items()))

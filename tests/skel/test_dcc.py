@@ -198,6 +198,7 @@ def test_corrective_shapes_are_the_least_squares_correction(small_face):
     w0 = initial_weights(sf["d_vm"], np.full(10, sf["width"]))
     cov = take_covariance(sf["disp"])
     base = fit_dcc_skin(sf["b"], w0, 3, cov, n_shapes=0)
+    assert base.shape_weights(sf["disp"]).shape == (60, 0) and base.shapes.shape == (0, 150, 3)
     fit = fit_dcc_skin(sf["b"], w0, 3, cov, n_shapes=7, shape_offset=50.0)  # large offset: no clipping
     assert np.abs(fit.shapes.sum(axis=0)).max() < 1e-12  # the simplex: shapes sum to zero
     d = sf["disp"]

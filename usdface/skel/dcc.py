@@ -122,8 +122,8 @@ class DccSkin:
     def shape_weights(self, displacements: np.ndarray) -> np.ndarray:
         """(F, S) blend-shape weights in [0, 1] for marker displacements (F, M, 3)."""
         d = np.asarray(displacements, dtype=np.float64)
-        lin = d.reshape(d.shape[0], -1) @ self.shape_map.reshape(self.shape_map.shape[0], -1).T
-        if lin.shape[1] == 0:
+        lin = d.reshape(d.shape[0], -1) @ self.shape_map.reshape(self.n_shapes, d.shape[1] * 3).T
+        if self.n_shapes == 0:
             return lin
         return np.clip(lin - np.minimum(lin.min(axis=1, keepdims=True), 0.0), 0.0, 1.0)
 
