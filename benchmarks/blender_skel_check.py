@@ -119,7 +119,7 @@ def main(argv=None) -> int:
     from usdface.usd.skel_layer import skinned_points
 
     rest, cache, stabilised, chin_frame, start = point_cache(args.outdir)
-    _, usdskel = skinned_points(args.outdir / args.file)
+    _, usdskel = skinned_points(args.outdir / args.file, space="world")
     usdskel_err = np.linalg.norm(usdskel - cache, axis=2).max(axis=1)
     worst = [int(f) for f in np.argsort(-usdskel_err)[:args.worst]]
     frames = sorted({0, chin_frame, *worst, *args.frames})

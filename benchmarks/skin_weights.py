@@ -146,7 +146,7 @@ def usdskel_error(rig, inputs, mesh_path, cache, tmp: Path, frames=None):
 
     path = tmp / "rig.usdc"
     rig.write(path, inputs, mesh_path)
-    _, pts = skinned_points(path)
+    _, pts = skinned_points(path, space="world")
     err = np.linalg.norm(pts - world(cache, inputs.head_motion), axis=2)
     return err
 

@@ -82,7 +82,7 @@ def test_default_rig_reproduces_the_point_cache_in_world_space(skel_default, jaw
     """UsdSkel blend shapes + skinning + the /Face head motion vs the point cache moved by H_mesh(f)."""
     out, report = skel_default
     h, neutral = _head_motion(jaw)
-    _, world = skinned_points(out)
+    _, world = skinned_points(out, space="world")
     cache = points_of(jaw["anim"])
     err = np.linalg.norm(world - _moved(h, cache), axis=2)
     chin = int(np.argmax(np.linalg.norm(cache - cache[neutral], axis=2).max(axis=1)))
@@ -122,7 +122,7 @@ def test_head_motion_is_the_face_transform_not_a_joint(skel_default, ucli, jaw, 
     assert not report["headMotion"]
     assert not UsdGeom.Xformable(Usd.Stage.Open(str(still)).GetPrimAtPath("/Face")).GetOrderedXformOps()
     frames = [0, 389, 1200]
-    _, world = skinned_points(still, times=frames)
+    _, world = skinned_points(still, times=frames, space="world")
     _, moving = skinned_points(out, times=frames, space="mesh")
     assert np.abs(world - moving).max() < 1e-5  # same rig, same mesh-space deformation
     assert np.linalg.norm(world - points_of(jaw["anim"])[frames], axis=2).max() <= DCC_TARGET
@@ -145,7 +145,7 @@ def test_placement_is_in_mesh_space_without_compensating_transforms(skel_default
     assert np.allclose(bind[:, :3, :3], np.eye(3))
     # rest pose = the mesh: at the neutral frame the skinned face is exactly the mesh layer's points
     _, neutral = _head_motion(jaw)
-    _, pts = skinned_points(out, times=[neutral])
+    _, pts = skinned_points(out, times=[neutral], space="world")
     assert np.abs(pts[0] - mesh.points).max() < CM_TOL  # a few float32 ulp at 75 cm
 
 
@@ -202,7 +202,7 @@ def test_missing_markers_joints_follow_the_resolved_surface(skel_gaps, jaw, poin
         assert np.allclose(inputs.effective[f, chin], surface, atol=1e-4)
     h, _ = _head_motion(jaw)
     frames = [0, 400, 415, 445, 459, 460, 902, 1200]
-    _, world = skinned_points(out, times=frames)
+    _, world = skinned_points(out, times=frames, space="world")
     err = np.linalg.norm(world - _moved(h[frames], cache[frames]), axis=2).max(axis=1)
     print("frames with missing markers, UsdSkel vs re-solved point cache (cm):",
           dict(zip(frames, np.round(err, 4).tolist())))

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import ComputeError, InputError, MeshError, OptionError, list_names
 
 log = logging.getLogger("usdface")
@@ -73,7 +74,9 @@ def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", dispar
     t0 = time.perf_counter()
     if output is None and disparity is None:
         raise OptionError("stereo: nothing to write: give -o SCAN.usdc and/or --disparity DISP.exr")
-    out = check_output_path(output) if output is not None else None
+    inputs = {"left": left, "right": right, "--calib": calib}
+    out = check_output_path(output, inputs=inputs) if output is not None else None
+    refuse_overwriting_inputs({"--disparity": disparity}, inputs)
     disp_path = check_image_output(disparity, suffixes=FLOAT_MAP_SUFFIXES, option="--disparity") if disparity else None
     if out is not None and calib is None:
         raise OptionError("stereo: a metric scan (-o) needs the camera calibration: --calib CALIB.json "
@@ -188,6 +191,7 @@ def detect(image, output, *, preview=None, aam=None, min_size=None, min_neighbor
     from ..scan.detect import detect_faces, draw_detections, features_dict
     from ..scan.landmarks import _atomic_text
 
+    refuse_overwriting_inputs({"-o": output, "--preview": preview}, {"image": image, "--aam": aam})
     out = Path(output)
     if out.suffix.lower() != ".json":
         raise OptionError(f"-o {out}: expected a .json features file")
@@ -255,6 +259,7 @@ def landmarks_train(images, output, *, landmarks=None, points_dir=None, augment=
     from ..scan.detect import largest_face_box
     from ..scan.landmarks import FACE_LANDMARKS, read_landmarks
 
+    refuse_overwriting_inputs({"-o": output}, {"images": [str(p) for p in images], "--landmarks": landmarks})
     out = Path(output)
     if out.suffix != ".npz":
         raise OptionError(f"-o {out}: an AAM model is written as .npz")
@@ -429,7 +434,10 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
     from ..usd.mesh_layer import read_mesh_layer, write_mesh_layer
 
     t0 = time.perf_counter()
-    out = check_output_path(output)
+    inputs = {"--generic": generic, "--scan": scan, "--landmarks": landmarks,
+              "--generic-landmarks": generic_landmarks, "--layout": layout, "--image": image, "--aam": aam}
+    out = check_output_path(output, inputs=inputs)
+    refuse_overwriting_inputs({"--layout-output": layout_output}, inputs)
     gpath = Path(generic)
     mesh, regions = read_mesh_layer(generic)
     if not regions:
@@ -562,7 +570,7 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
 # ================================================================================================
 def register_cli(subparsers) -> None:
     """Add ``stereo``, ``detect``, ``landmarks train`` and ``register`` to the ``usdface`` command."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "stereo", help="stereo pair -> disparity map and metric scan mesh layer",

@@ -13,8 +13,11 @@ log = logging.getLogger("usdface")
 
 
 def load_capture(path, *, units=None, rate=None, up_axis=None) -> Capture:
-    """Read any capture usdface understands: a capture file (.ma .c3d .trc .csv) or a capture layer."""
-    if Path(path).suffix.lower() in USD_SUFFIXES:
+    """Read any capture usdface understands: a capture file (.ma .c3d .trc .csv), a capture layer,
+    or (Python API) an in-memory stage or layer holding a marker set."""
+    from ..usd.layers import is_in_memory
+
+    if is_in_memory(path) or Path(path).suffix.lower() in USD_SUFFIXES:
         from ..usd.capture_layer import read_capture_layer
 
         capture = read_capture_layer(path)
@@ -35,7 +38,8 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     """Apply the optional conditioning steps in a fixed order; returns (capture, reports).
 
     Order: trim -> marker-swap detection (reported) -> gap filling -> noise filter -> resample ->
-    neutral frame -> head stabilisation (relative to the neutral frame) -> time offset.
+    neutral frame -> head stabilisation (relative to the neutral frame) -> time offset (time code =
+    frame index from 0, or from ``start_frame``).
     """
     from ..capture import gaps, neutral as neutral_mod, swaps, timing
 
@@ -84,8 +88,12 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
         markers = None if stabilize == "auto" else list(stabilize)
         capture, report = stabilize_fn(capture, markers=markers)
         reports["stabilize"] = report.summary()
-    if start_frame is not None:
-        capture = timing.offset(capture, start_frame=start_frame)
+    # one time-code convention for every output: frame index from 0 unless --start-frame says
+    # otherwise (C3D counts from 1, TRC from its first time; the source's number is in the history)
+    target = 0 if start_frame is None else start_frame
+    if capture.start_frame != target:
+        reports["timeCodes"] = {"sourceStart": int(capture.start_frame), "start": int(target)}
+        capture = timing.offset(capture, start_frame=target)
     return capture, reports
 
 
@@ -98,8 +106,10 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
     layer written before from the same file bytes, file name, options and usdface version: the
     layer is copied, byte for byte what this call would write.
     """
-    out = check_output_path(output)
-    if out.suffix.lower() not in (".usdc", ".usd", ".usda"):
+    from ..usd.layers import is_in_memory
+
+    out = check_output_path(output, inputs={"input": input})
+    if not is_in_memory(out) and out.suffix.lower() not in (".usdc", ".usd", ".usda"):
         raise OptionError(f"-o {out}: a capture layer is a .usdc (or .usd/.usda) file")
     options = dict(units=units, rate=rate, up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
                    filter=filter, cutoff=cutoff if filter else None, trim=trim, start_frame=start_frame,

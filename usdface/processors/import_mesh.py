@@ -10,8 +10,11 @@ from ..usd.layers import USD_SUFFIXES, check_output_path, provenance
 
 
 def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
-    """Read a mesh file or a USD mesh layer; returns (mesh, regions already on it)."""
-    if Path(path).suffix.lower() in USD_SUFFIXES:
+    """Read a mesh file, a USD mesh layer or (Python API) an in-memory stage or layer; returns
+    (mesh, regions already on it)."""
+    from ..usd.layers import is_in_memory
+
+    if is_in_memory(path) or Path(path).suffix.lower() in USD_SUFFIXES:
         from ..usd.mesh_layer import read_mesh_layer
 
         mesh, regions = read_mesh_layer(path)
@@ -39,7 +42,7 @@ def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
     from ..mesh.topology import find_hole_regions, mesh_topology
     from ..usd.mesh_layer import write_mesh_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"input": input})
     mesh, regions = load_mesh(input, units=units)
     mesh.check_degenerate()
     if up_axis.upper() == "Z":  # Z-up source: (x, y, z) -> (x, z, -y)

@@ -84,7 +84,8 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
     from ..usd.capture_layer import write_capture_layer
     from ..usd.mesh_layer import read_mesh_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"tracks": tracks_path, "--mesh": mesh_path, "--binding": binding,
+                                            "--layout": layout})
     if depth not in ("tangent", "zero"):
         raise OptionError(f"--depth: expected tangent or zero; got {depth!r}")
     min_cos = DEFAULT_MIN_COS if min_cos is None else float(min_cos)
@@ -143,7 +144,7 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
 
 def register_cli(sub) -> None:
     """Add `usdface lift` to the CLI."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = sub.add_parser("lift", help="lift 2D marker tracks (video) to a 3D capture layer on the mesh",
                        description="Map 2D image tracks of face markers to 3D motion on a character mesh: fit a "

@@ -259,7 +259,8 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
     from ..skel.weights import FIT_METHODS, motion_gram
     from ..usd.skel_layer import skinned_points, write_skel_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"--mesh": mesh_path, "--capture": capture_path,
+                                            "--binding": binding_path, "--analysis": analysis_path})
     k = _parse_k(max_influences)
     mode = resolve_skin_weights(skin_weights, negative_weights)
     if skin_fit not in SKIN_FITS:
@@ -378,7 +379,8 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
 
 def register_cli(sub) -> None:
     """Add `usdface skel` to the CLI."""
-    from ..cli import add_common_options, add_transfer_options
+    from ..cliargs import add_common_options, add_options
+    from ..options import TransferOptions
 
     p = sub.add_parser("skel", help="skeletal keyframes (UsdSkel): a joint per marker, skinned like the transfer",
                        description="Write a UsdSkel layer: one SkelRoot (carrying the head motion), a Skeleton with "
@@ -393,7 +395,7 @@ def register_cli(sub) -> None:
     p.add_argument("--analysis", required=True, help="analysis layer (from `usdface distances`)")
     p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"],
                    help="which distance matrix of the analysis layer (default: its only one)")
-    add_transfer_options(p)
+    add_options(p, TransferOptions)
     g = p.add_argument_group("skinning")
     g.add_argument("--skin-weights", choices=SKIN_WEIGHTS, default=None,
                    help="dcc (default): non-negative weights summing to one that Blender, Maya and game engines "
@@ -422,9 +424,11 @@ def register_cli(sub) -> None:
 
 
 def _cmd_skel(args) -> dict:
+    from ..cliargs import options_from_args
+    from ..options import TransferOptions
+
     return skel(args.mesh, args.capture, args.binding, args.analysis, args.output,
                 skin_weights=args.skin_weights, max_influences=args.max_influences, skin_fit=args.skin_fit,
                 corrective_shapes=args.corrective_shapes, weight_fit=args.weight_fit,
                 negative_weights=args.negative_weights, head_motion=args.head_motion, verify=args.verify,
-                rbf=args.rbf, kernel=args.kernel, stiffness=args.stiffness, regularization=args.regularization,
-                polynomial=args.polynomial, method=args.method)
+                method=args.method, **options_from_args(TransferOptions, args).to_dict())

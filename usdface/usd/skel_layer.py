@@ -185,73 +185,33 @@ def write_skel_layer(path, rig, weights, *, mesh_path, units, rate: float, start
 
 
 def skinned_points(path, *, times=None, stage: Usd.Stage | None = None,
-                   space: str = "world") -> tuple[np.ndarray, np.ndarray]:
-    """Deform the face mesh of a skeleton layer with UsdSkel: blend shapes, then skinning.
-
-    Blend shapes with ``UsdSkel.BlendShapeQuery`` (weights from the SkelAnimation), then linear
-    blend skinning with ``UsdSkel.SkinningQuery.ComputeSkinnedPoints``.
+                   space: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+    """Deform the face mesh of a skeleton layer with UsdSkel: blend shapes, then skinning
+    (:class:`usdface.usd.evaluate.FaceEvaluator`: ``UsdSkel.BlendShapeQuery`` with the
+    SkelAnimation's weights, then ``UsdSkel.SkinningQuery.ComputeSkinnedPoints``).
 
     Parameters
     ----------
-    path : path of a skeleton layer (or any stage with one SkelRoot and a skinned mesh)
-    times : sequence of time codes, optional (default: every time sample of the animation)
-    space : {"world", "mesh"}
-        "world": where a DCC shows the mesh (the head motion on /Face applied); "mesh": the mesh
-        prim's parent space, where the stabilised point cache lives.
+    path : path of a skeleton layer (or any stage with a skinned face mesh)
+    times : sequence of time codes, optional (default: every time code that moves the face)
+    space : {"mesh", "world"}
+        "mesh": the mesh's own space, where the stabilised point cache lives (as
+        ``UsdSkel.BakeSkinning`` would bake the points); "world": where a DCC shows the face (the
+        head motion on /Face applied).
 
     Returns
     -------
     times : ndarray (F,)
     points : ndarray (F, N, 3) float64
     """
-    if space not in ("world", "mesh"):
-        raise ValueError(f"space: expected 'world' or 'mesh'; got {space!r}")
-    stage = stage or open_stage(path, what="skeleton")
-    roots = [p for p in stage.Traverse() if p.IsA(UsdSkel.Root)]
-    if len(roots) != 1:  # one SkelRoot per character
-        raise InputError(f"skeleton {path}: expected one SkelRoot, found {len(roots)}")
-    cache = UsdSkel.Cache()
-    root = UsdSkel.Root(roots[0])
-    cache.Populate(root, Usd.TraverseInstanceProxies())
-    bindings = cache.ComputeSkelBindings(root, Usd.TraverseInstanceProxies())
-    if not bindings:
-        raise InputError(f"skeleton {path}: no skinned mesh under {roots[0].GetPath()}")
-    binding = bindings[0]
-    skel_query = cache.GetSkelQuery(binding.GetSkeleton())
-    skin_query = binding.GetSkinningTargets()[0]
-    mesh = UsdGeom.Mesh(skin_query.GetPrim())
-    rest = mesh.GetPointsAttr().Get()
-    anim = skel_query.GetAnimQuery()
-    shapes = None
-    if skin_query.HasBlendShapes() and anim:
-        shapes = UsdSkel.BlendShapeQuery(UsdSkel.BindingAPI(mesh.GetPrim()))
-        shape_points = shapes.ComputeBlendShapePointIndices()
-        shape_offsets = shapes.ComputeSubShapePointOffsets()
-        mapper = skin_query.GetBlendShapeMapper()
-    if times is None:
-        times = sorted(set(anim.GetJointTransformTimeSamples()) | set(anim.GetBlendShapeWeightTimeSamples())) \
-            if anim else []
-        times = list(times) or [Usd.TimeCode.Default().GetValue()]
-    out = np.empty((len(times), len(rest), 3))
-    xf = UsdGeom.XformCache()
-    for i, t in enumerate(times):
-        tc = Usd.TimeCode(t)
-        pts = Vt.Vec3fArray(rest)
-        if shapes is not None:
-            weights = mapper.Remap(anim.ComputeBlendShapeWeights(tc))
-            sub_weights, shape_idx, sub_idx = shapes.ComputeSubShapeWeights(weights)
-            shapes.ComputeDeformedPoints(sub_weights, shape_idx, sub_idx, shape_points, shape_offsets, pts)
-        xforms = skel_query.ComputeSkinningTransforms(tc)
-        if not skin_query.ComputeSkinnedPoints(xforms, pts, tc):
-            raise InputError(f"skeleton {path}: UsdSkel could not skin {mesh.GetPath()} at time {t}")
-        # skinned points are in skeleton space
-        xf.SetTime(tc)
-        m = xf.GetLocalToWorldTransform(skel_query.GetPrim())
-        if space == "mesh":
-            m = m * xf.GetLocalToWorldTransform(mesh.GetPrim().GetParent()).GetInverse()
-        m = np.array(m, dtype=np.float64)
-        out[i] = np.asarray(pts, dtype=np.float64) @ m[:3, :3] + m[3, :3]
-    return np.asarray(times, dtype=np.float64), out
+    from .evaluate import FaceEvaluator
+
+    ev = FaceEvaluator(stage, source=str(path)) if stage is not None else FaceEvaluator.open(path, what="skeleton")
+    if not ev.skinned:
+        raise InputError(f"skeleton {path}: the face mesh {ev.mesh_path} is not skinned (no SkelRoot ancestor, "
+                         "no bound Skeleton with a bind pose, or no joint influences)")
+    times = ev.resolve_times(times)
+    return times, ev.points_range(times, space=space)
 
 
 def read_skel_report(path) -> dict:
