@@ -278,7 +278,9 @@ def check_shot_integrity(path: str | os.PathLike) -> list[Finding]:
 def check_layer(path: str | os.PathLike) -> list[Finding]:
     """Run every UsdValidation validator (USD's and usdface's) on the stage opened from ``path``,
     and, for a shot stage written by `usdface run`, :func:`check_shot_integrity`."""
-    integrity = check_shot_integrity(path)
+    from .layers import is_in_memory
+
+    integrity = [] if is_in_memory(path) else check_shot_integrity(path)  # shots are files
     if any(f.severity == "error" and ("missing" in f.message) for f in integrity):
         return integrity  # composing a shot with missing layers adds nothing but USD's warnings
     register_validators()
