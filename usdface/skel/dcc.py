@@ -67,7 +67,7 @@ from threadpoolctl import threadpool_limits
 
 from ..errors import ComputeError, OptionError
 from .simplex_lsq import simplex_lsq
-from .weights import SkinWeights
+from .weights import SkinWeights, error_summary
 
 #: smallest authored weight (Blender's USD importer drops smaller ones and renormalises)
 MIN_WEIGHT = 1e-5
@@ -431,17 +431,12 @@ def dcc_skinning_error(skin: DccSkin, transfer_matrix: np.ndarray, displacements
     """
     b = np.asarray(transfer_matrix, dtype=np.float64)
     d = np.asarray(displacements, dtype=np.float64)
-    worst, worst_f, sq, count = 0.0, 0, 0.0, 0
-    for a in range(0, d.shape[0], chunk_frames):
-        part = d[a:a + chunk_frames]
-        flat = part.transpose(1, 0, 2).reshape(part.shape[1], -1)
-        err = skin.displacements(part) - (b @ flat).reshape(b.shape[0], part.shape[0], 3).transpose(1, 0, 2)
-        norm = np.sqrt((err * err).sum(axis=2))  # (f, N)
-        fmax = norm.max(axis=1)
-        i = int(fmax.argmax())
-        if fmax[i] > worst:
-            worst, worst_f = float(fmax[i]), a + i
-        sq += float((norm * norm).sum())
-        count += norm.size
-    return {"max": worst, "rms": float(np.sqrt(sq / max(count, 1))), "maxFrame": int(worst_f),
-            "frames": int(d.shape[0])}
+
+    def chunks():
+        for a in range(0, d.shape[0], chunk_frames):
+            part = d[a:a + chunk_frames]
+            flat = part.transpose(1, 0, 2).reshape(part.shape[1], -1)
+            err = skin.displacements(part) - (b @ flat).reshape(b.shape[0], part.shape[0], 3).transpose(1, 0, 2)
+            yield a, np.sqrt((err * err).sum(axis=2))  # (f, N)
+
+    return error_summary(chunks())

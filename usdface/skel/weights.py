@@ -201,15 +201,34 @@ def skinning_error(weights: SkinWeights, transfer_matrix: np.ndarray, displaceme
     rest_err = (dense.sum(axis=1) - 1.0)[:, None] * np.asarray(rest_points, dtype=np.float64)
     d = np.asarray(displacements, dtype=np.float64)
     flat = np.ascontiguousarray(d.transpose(1, 0, 2).reshape(m, -1))  # (M, F*3), frame-major columns
-    worst, worst_f, sq, count = 0.0, 0, 0.0, 0
-    for a in range(0, d.shape[0], chunk_frames):
-        f = min(d.shape[0], a + chunk_frames) - a
-        err = (e @ flat[:, 3 * a:3 * (a + f)]).reshape(n, f, 3) + rest_err[:, None, :]
-        norm = np.sqrt((err * err).sum(axis=2))  # (N, f)
-        fmax = norm.max(axis=0)
+    def chunks():
+        for a in range(0, d.shape[0], chunk_frames):
+            f = min(d.shape[0], a + chunk_frames) - a
+            err = (e @ flat[:, 3 * a:3 * (a + f)]).reshape(n, f, 3) + rest_err[:, None, :]
+            yield a, np.sqrt((err * err).sum(axis=2)).T  # (f, N)
+
+    return error_summary(chunks())
+
+
+def error_summary(norm_chunks) -> dict:
+    """Largest and rms vertex error over chunks of frames.
+
+    Parameters
+    ----------
+    norm_chunks : iterable of (first frame, ndarray (f, N))
+        Vertex error norms (mesh units) of consecutive chunks of frames.
+
+    Returns
+    -------
+    dict: ``max``, ``rms`` (mesh units), ``maxFrame`` (frame of the largest error), ``frames``.
+    """
+    worst, worst_f, sq, count, frames = 0.0, 0, 0.0, 0, 0
+    for a, norm in norm_chunks:
+        fmax = norm.max(axis=1)
         i = int(fmax.argmax())
         if fmax[i] > worst:
             worst, worst_f = float(fmax[i]), a + i
         sq += float((norm * norm).sum())
         count += norm.size
-    return {"max": worst, "rms": float(np.sqrt(sq / max(count, 1))), "maxFrame": int(worst_f)}
+        frames += norm.shape[0]
+    return {"max": worst, "rms": float(np.sqrt(sq / max(count, 1))), "maxFrame": int(worst_f), "frames": frames}
