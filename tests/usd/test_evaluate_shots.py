@@ -1,8 +1,8 @@
 """The face evaluator on real outputs of `usdface run` (Jaw take on the MakeHuman face, 300 frames).
 
-The skinned shot is checked against linear blend skinning written here with numpy from the
-layer's raw attributes (joints, bind/rest transforms, joint animation, influences): no UsdSkel
-query is involved in the reference.
+The skinned shot is checked against blend shapes and linear blend skinning written here with numpy
+from the layer's raw attributes (blend-shape offsets and weights, joints, bind/rest transforms, joint
+animation, influences): no UsdSkel query is involved in the reference.
 """
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ def _col(m) -> np.ndarray:
 
 
 def lbs_by_hand(path, times) -> np.ndarray:
-    """World-space linear blend skinning of the face mesh of ``path`` from its raw attributes."""
+    """World-space blend shapes + linear blend skinning of the face mesh of ``path`` from its raw attributes."""
     stage = Usd.Stage.Open(str(path))
     geom = next(p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh))
     skel_prim = stage.GetPrimAtPath(geom.GetRelationship("skel:skeleton").GetTargets()[0])
@@ -50,9 +50,18 @@ def lbs_by_hand(path, times) -> np.ndarray:
     gbind_attr = geom.GetAttribute("primvars:skel:geomBindTransform")
     gbind = _col(gbind_attr.Get()) if gbind_attr and gbind_attr.HasValue() else np.eye(4)
     rest_pts = np.asarray(geom.GetAttribute("points").Get(), dtype=np.float64)
-    q = np.c_[rest_pts, np.ones(len(rest_pts))] @ gbind.T
+    shape_names = list(geom.GetAttribute("skel:blendShapes").Get() or [])
+    targets = geom.GetRelationship("skel:blendShapeTargets").GetTargets() if shape_names else []
+    offsets = {n: np.asarray(stage.GetPrimAtPath(t).GetAttribute("offsets").Get(), dtype=np.float64)
+               for n, t in zip(shape_names, targets)}  # dense offsets (usdface writes no pointIndices)
+    anim_shapes = list(anim.GetAttribute("blendShapes").Get() or []) if shape_names else []
     out = []
     for t in times:
+        base = rest_pts.copy()
+        if anim_shapes:
+            for name, wt in zip(anim_shapes, anim.GetAttribute("blendShapeWeights").Get(t)):
+                base += float(wt) * offsets[name]
+        q = np.c_[base, np.ones(len(base))] @ gbind.T
         local = rest.copy()
         tr = np.asarray(anim.GetAttribute("translations").Get(t), dtype=np.float64)
         rot = np.asarray(anim.GetAttribute("rotations").Get(t), dtype=np.float64)  # (J, 4): i, j, k, real
@@ -81,7 +90,7 @@ def _jaw_open_frame(ev: FaceEvaluator) -> int:
 
 def test_skeleton_shot_matches_skinning_by_hand(shot):
     ev = FaceEvaluator.open(shot / "shot_skel.usda")
-    assert ev.deformation == ("skinning",) and ev.n_points == 2020 and ev.rate == 60
+    assert ev.deformation == ("blendShapes", "skinning") and ev.n_points == 2020 and ev.rate == 60
     assert ev.time_codes[0] == 0 and ev.time_codes.size == 300
     times = [0, 37, 150, 299, _jaw_open_frame(ev)]
     ref = lbs_by_hand(shot / "shot_skel.usda", times)
@@ -96,7 +105,7 @@ def test_skeleton_shot_matches_skinning_by_hand(shot):
 def test_skeleton_layer_alone_equals_the_shot(shot):
     alone = FaceEvaluator.open(shot / "skel.usdc")
     composed = FaceEvaluator.open(shot / "shot_skel.usda")
-    assert alone.deformation == ("skinning",)
+    assert alone.deformation == ("blendShapes", "skinning")
     assert np.array_equal(alone.points_range(), composed.points_range())
 
 
