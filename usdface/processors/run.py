@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from ..errors import EnvironmentFault, OptionError, ResourceError, UsdFaceError, WriteError
-from ..options import CaptureOptions, RunOptions, TransferOptions
+from ..options import CaptureOptions, RunOptions, SkelOptions, TransferOptions
 
 def is_video(path) -> bool:
     """A movie file, an image-sequence pattern (name.####.png) or a folder of frames."""
@@ -182,7 +182,7 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
             from .skel import skel
 
             steps["skel"] = skel(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], f["analysis.usdc"],
-                                 f["skel.usdc"], max_influences=o.max_influences, head_motion=o.head_motion,
+                                 f["skel.usdc"], head_motion=o.head_motion, **o.group(SkelOptions).to_dict(),
                                  **transfer_options)
         if "blendshapes.usdc" in f:
             from .solve import solve_shot

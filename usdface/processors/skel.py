@@ -39,6 +39,7 @@ import numpy as np
 
 from ..errors import ComputeError, OptionError
 from ..progress import progress
+from ..options import RunOptions, SkelOptions, TransferOptions
 from ..rbf.stability import DEFAULT_MAX_AMPLIFICATION
 from ..usd.layers import check_output_path, provenance
 from .transfer import build_transfer_solver, load_transfer_inputs
@@ -380,7 +381,6 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, skin_w
 def register_cli(sub) -> None:
     """Add `usdface skel` to the CLI."""
     from ..cliargs import add_common_options, add_options
-    from ..options import TransferOptions
 
     p = sub.add_parser("skel", help="skeletal keyframes (UsdSkel): a joint per marker, skinned like the transfer",
                        description="Write a UsdSkel layer: one SkelRoot (carrying the head motion), a Skeleton with "
@@ -395,27 +395,12 @@ def register_cli(sub) -> None:
     p.add_argument("--analysis", required=True, help="analysis layer (from `usdface distances`)")
     p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"],
                    help="which distance matrix of the analysis layer (default: its only one)")
-    add_options(p, TransferOptions)
-    g = p.add_argument_group("skinning")
-    g.add_argument("--skin-weights", choices=SKIN_WEIGHTS, default=None,
-                   help="dcc (default): non-negative weights summing to one that Blender, Maya and game engines "
-                        "take as they are, fitted to the transfer, with corrective blend shapes; exact: the "
-                        "transfer matrix itself (signed weights; UsdSkel only)")
-    g.add_argument("--max-influences", default=str(DEFAULT_MAX_INFLUENCES), metavar="K|all",
-                   help="joints per vertex, root included (default 8; game engines often take 4); 'all' keeps "
-                        "every joint")
-    g.add_argument("--skin-fit", choices=SKIN_FITS, default="rom",
-                   help="dcc: fit the weights on the synthetic range of motion (default: the character's weights, "
-                        "the same for every take) or on this take's marker motion")
-    g.add_argument("--corrective-shapes", type=int, default=None, metavar="S",
-                   help="dcc: corrective blend shapes (weights in [0, 1]), 0 or 2 to 16 (default 16)")
-    g.add_argument("--weight-fit", choices=["lsq", "renormalize"], default="lsq",
-                   help="exact: after pruning, refit the kept weights by least squares over the take (default) "
-                        "or just rescale them to sum to one")
+    groups = add_options(p, TransferOptions)
+    add_options(p, SkelOptions, groups=groups)
+    add_options(p, RunOptions, only={"head_motion"}, groups=groups)
+    g = groups["skeleton"]
     g.add_argument("--negative-weights", choices=sorted(NEGATIVE_WEIGHTS_ALIAS), default=None,
                    help="deprecated: keep = --skin-weights exact, clamp = --skin-weights dcc")
-    g.add_argument("--no-head-motion", dest="head_motion", action="store_false",
-                   help="no head motion on /Face even when the capture has one")
     g.add_argument("--no-verify", dest="verify", action="store_false",
                    help="skip deforming the written layer with UsdSkel to measure its error")
     p.add_argument("-o", "--output", required=True, help="skeleton layer to write (.usdc)")
@@ -425,10 +410,12 @@ def register_cli(sub) -> None:
 
 def _cmd_skel(args) -> dict:
     from ..cliargs import options_from_args
-    from ..options import TransferOptions
 
+    o = options_from_args(SkelOptions, args)
+    # the deprecated alias decides only when --skin-weights was not given (resolve_skin_weights
+    # refuses a contradiction)
     return skel(args.mesh, args.capture, args.binding, args.analysis, args.output,
-                skin_weights=args.skin_weights, max_influences=args.max_influences, skin_fit=args.skin_fit,
-                corrective_shapes=args.corrective_shapes, weight_fit=args.weight_fit,
-                negative_weights=args.negative_weights, head_motion=args.head_motion, verify=args.verify,
+                skin_weights=getattr(args, "skin_weights", None), negative_weights=args.negative_weights,
+                max_influences=o.max_influences, skin_fit=o.skin_fit, corrective_shapes=o.corrective_shapes,
+                weight_fit=o.weight_fit, head_motion=getattr(args, "head_motion", True), verify=args.verify,
                 method=args.method, **options_from_args(TransferOptions, args).to_dict())
