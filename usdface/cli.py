@@ -40,6 +40,22 @@ def _capture_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--resample", type=_positive_float, metavar="HZ", help="resample to this rate")
     g.add_argument("--neutral", default=None, metavar="FRAME|auto",
                    help="neutral frame (0-based index after trimming) or 'auto' (default: first frame)")
+    _plausibility_options(p)
+
+
+def _plausibility_options(p: argparse.ArgumentParser, *, capture: bool = True) -> None:
+    """--allow CHECK... (every command that judges data); --keep-zeros, --drop-outliers (captures)."""
+    from .capture.plausibility import CHECKS
+
+    g = p.add_argument_group("plausibility checks (see the README's table)")
+    g.add_argument("--allow", nargs="+", action="extend", type=_allow_arg, default=[], metavar="CHECK",
+                   help="accept these findings: an error becomes a warning, a warning is silenced; "
+                        f"checks: {', '.join(CHECKS)}")
+    if capture:
+        g.add_argument("--keep-zeros", action="store_true",
+                       help="C3D: keep samples at exactly (0, 0, 0) as positions (default: they are gaps)")
+        g.add_argument("--drop-outliers", action="store_true",
+                       help="make outlier samples gaps instead of stopping (fill them with --fill-gaps N)")
 
 
 def _distance_options(p: argparse.ArgumentParser, *, with_method: bool = True) -> None:
@@ -112,6 +128,7 @@ def _add_subcommands(sub) -> None:
     src.add_argument("--auto", action="store_true", help="align the neutral marker cloud to the surface")
     p.add_argument("--retarget", choices=["displacement", "similarity"], default="displacement",
                    help="displacement: capture motion rotated, not scaled (the paper); similarity: also scaled")
+    _plausibility_options(p, capture=False)
     p.add_argument("-o", "--output", required=True, help="binding layer to write (.usda)")
     _add_common(p)
     p.set_defaults(func=_cmd_bind)
@@ -240,6 +257,17 @@ def _regularization_arg(value):
     return lam
 
 
+def _allow_arg(value):
+    from .capture.plausibility import parse_allow
+    from .errors import OptionError
+
+    try:
+        parse_allow(value)
+    except OptionError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return value
+
+
 def _stabilize_arg(value):
     if value is None or value == "auto":
         return value
@@ -261,7 +289,8 @@ def _cmd_import_capture(args) -> dict:
     return import_capture(args.input, args.output, units=args.units, rate=args.rate, up_axis=args.up_axis,
                           stabilize=_stabilize_arg(args.stabilize), fill_gaps=args.fill_gaps, filter=args.filter,
                           cutoff=args.cutoff, trim=args.trim, start_frame=args.start_frame,
-                          resample=args.resample, neutral=_neutral_arg(args.neutral))
+                          resample=args.resample, neutral=_neutral_arg(args.neutral), allow=args.allow,
+                          keep_zeros=args.keep_zeros, drop_outliers=args.drop_outliers)
 
 
 def _cmd_import_mesh(args) -> dict:
@@ -273,7 +302,8 @@ def _cmd_import_mesh(args) -> dict:
 def _cmd_bind(args) -> dict:
     from .processors.bind import bind
 
-    return bind(args.mesh, args.capture, args.output, layout=args.layout, auto=args.auto, retarget=args.retarget)
+    return bind(args.mesh, args.capture, args.output, layout=args.layout, auto=args.auto, retarget=args.retarget,
+                allow=args.allow)
 
 
 def _cmd_distances(args) -> dict:
@@ -304,7 +334,8 @@ def _cmd_run(args) -> dict:
                region_radius_cm=args.region_radius, sigma_cm=args.sigma, threshold=args.threshold,
                pin_border=args.pin_border, components=args.components, output=args.output_kind,
                seeds=args.seeds, radius=tuple(args.radius), max_influences=args.max_influences,
-               resample=args.resample, start_frame=args.start_frame)
+               resample=args.resample, start_frame=args.start_frame, allow=args.allow, keep_zeros=args.keep_zeros,
+               drop_outliers=args.drop_outliers)
 
 
 def _cmd_info(args) -> dict:
@@ -352,6 +383,11 @@ PLUGIN_COMMANDS = (
 def add_common_options(p: argparse.ArgumentParser) -> None:
     """--json, -v, -q: every subcommand has them."""
     _add_common(p)
+
+
+def add_plausibility_options(p: argparse.ArgumentParser, *, capture: bool = True) -> None:
+    """--allow CHECK... (and, for captures, --keep-zeros, --drop-outliers)."""
+    _plausibility_options(p, capture=capture)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -47,7 +47,7 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
         fill_gaps=None, filter=None, cutoff=8.0, trim=None, neutral=None, region_radius_cm=1.0,
         sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error", cache=None,
         output="points", seeds=None, radius=(3.0, 10.0), max_influences=8, resample=None,
-        start_frame=None) -> dict:
+        start_frame=None, allow=(), keep_zeros=False, drop_outliers=False) -> dict:
     """Run the whole pipeline; returns the summary (also written to OUTDIR/summary.json).
 
     ``cache`` (a :class:`usdface.batch.cache.ContentCache`; default None, no cache) reuses imported
@@ -60,6 +60,10 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
     A video ``capture`` (movie, ``name.####.ext`` or a folder of frames) is tracked
     (``seeds`` JSON or ``auto`` = N markers, ``radius`` in px) into OUTDIR/tracks.usdc and lifted
     onto the mesh through ``layout`` into capture.usdc; a video needs ``layout``.
+
+    Plausibility (:mod:`usdface.capture.plausibility`): ``allow`` (check codes) accepts findings
+    of import-capture, lift and bind that would stop the run; ``keep_zeros`` and ``drop_outliers``
+    as in :func:`usdface.processors.import_capture.import_capture`.
     """
     from .bind import bind
     from .distances import distances
@@ -103,7 +107,8 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
                           retarget=retarget, mesh_units=mesh_units, units=units, rate=rate, up_axis=up_axis,
                           stabilize=stabilize, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff, trim=trim,
                           neutral=neutral, region_radius_cm=region_radius_cm, sigma_cm=sigma_cm,
-                          threshold=threshold, pin_border=pin_border, components=components)
+                          threshold=threshold, pin_border=pin_border, components=components,
+                          allow=sorted(allow or ()), keep_zeros=keep_zeros, drop_outliers=drop_outliers)
     prov = run_provenance(mesh, capture, options, layout=layout, stiffness=stiffness)
     created = [d for d in [out, *out.parents] if not d.exists()]
     out.mkdir(parents=True, exist_ok=True)
@@ -120,18 +125,21 @@ def run(mesh, capture, out_dir, *, layout=None, auto=False, method="hybrid", bac
             steps["track"] = track(capture, f["tracks.usdc"], seeds=seeds, auto=track_auto, layout=layout,
                                    mesh=mesh, radius=tuple(radius), rate=rate)
             lifted = work / "lifted.usdc"
-            steps["lift"] = lift(f["tracks.usdc"], f["mesh.usdc"], lifted, layout=layout, neutral=neutral)
+            steps["lift"] = lift(f["tracks.usdc"], f["mesh.usdc"], lifted, layout=layout, neutral=neutral,
+                                 allow=allow)
             # the lifted capture still holds the head's motion in the image: condition it like any take
             steps["import-capture"] = import_capture(lifted, f["capture.usdc"], stabilize=stabilize,
                                                      fill_gaps=fill_gaps, filter=filter, cutoff=cutoff, trim=trim,
-                                                     resample=resample, start_frame=start_frame)
+                                                     resample=resample, start_frame=start_frame, allow=allow,
+                                                     drop_outliers=drop_outliers)
         else:
             steps["import-capture"] = import_capture(capture, f["capture.usdc"], units=units, rate=rate,
                                                      up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
                                                      filter=filter, cutoff=cutoff, trim=trim, neutral=neutral,
-                                                     resample=resample, start_frame=start_frame, cache=cache)
+                                                     resample=resample, start_frame=start_frame, allow=allow,
+                                                     keep_zeros=keep_zeros, drop_outliers=drop_outliers, cache=cache)
         steps["bind"] = bind(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], layout=layout,
-                             auto=bool(auto) and not video, retarget=retarget)
+                             auto=bool(auto) and not video, retarget=retarget, allow=allow)
         steps["distances"] = distances(f["mesh.usdc"], f["binding.usda"], f["analysis.usdc"], method=method,
                                        backend=backend, region_radius_cm=region_radius_cm, sigma_cm=sigma_cm,
                                        threshold=threshold, pin_border=pin_border, components=components,
