@@ -163,16 +163,16 @@ def _fit_camera(image_points, model_points, names, *, what: str):
     Returns (camera, findings).
     """
     from ..capture.lift import fit_weak_perspective
-    from ..mesh.judgement import FIT_MARKER_FRACTION, MAX_EXCLUDED_FRACTION, fit_residual_findings
+    from ..mesh.judgement import FIT_MARKER_FRACTION, MAX_EXCLUDED_FRACTION, extent, fit_residual_findings
 
     uv = np.asarray(image_points, dtype=np.float64)
     x = np.asarray(model_points, dtype=np.float64)
-    face_px = float(np.ptp(uv, axis=0).max())
-    limit = FIT_MARKER_FRACTION * face_px
     kept = np.ones(len(uv), dtype=bool)
     while True:
         cam = fit_weak_perspective(uv[kept], x[kept])
         res = np.linalg.norm(cam.project(x) - uv, axis=1)
+        face_px = cam.scale * extent(x)  # the face's size in the image, as a 3D fit measures it
+        limit = FIT_MARKER_FRACTION * face_px
         worst = int(np.argmax(np.where(kept, res, -np.inf)))
         if res[worst] <= limit or (~kept).sum() >= int(MAX_EXCLUDED_FRACTION * len(uv)) or kept.sum() <= 4:
             break
