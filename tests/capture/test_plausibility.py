@@ -92,7 +92,7 @@ def test_speed_warning_on_a_jump(takes):
     pos = jaw.positions.copy()
     pos[800:, jaw.index("Chin_L1")] += [2.5, 0.0, 0.0]  # a marker swap-like jump
     (f,) = check_capture(jaw.replace(positions=pos))
-    assert f.code == "speed" and f.severity == "warning" and "Chin_L1 between frames 799" in f.message
+    assert f.code == "speed" and f.severity == "warning" and "Chin_L1 from frame 799->800 " in f.message
 
 
 def test_parse_allow():

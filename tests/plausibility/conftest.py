@@ -8,6 +8,9 @@ frame). Nothing here is synthetic except the corruption itself.
 from __future__ import annotations
 
 import re
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -38,10 +41,15 @@ def jaw(sample_assets):
 @pytest.fixture(scope="session")
 def corpus(tmp_path_factory, sample_assets, jaw):
     """{case: path} of every corrupted file (built once per session)."""
+    return build_corpus(tmp_path_factory.mktemp("corpus"), sample_assets, jaw)
+
+
+def build_corpus(d: Path, sample_assets: Path, jaw) -> dict:
+    """Write every corrupted file into folder ``d``; returns {case: path} (and a few facts)."""
     from usdface.io.c3d import write_c3d
     from usdface.io.csv_format import write_csv
 
-    d = tmp_path_factory.mktemp("corpus")
+    d.mkdir(parents=True, exist_ok=True)
     out = {"dir": d}
     head = jaw.replace(positions=jaw.positions[:FRAMES].copy())
     chin = jaw.index("Chin")
@@ -153,3 +161,14 @@ def warnings_of(caplog):
         return [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING and r.name == "usdface"]
 
     return get
+
+
+if __name__ == "__main__":  # python tests/plausibility/conftest.py OUTDIR: write the corpus there
+    from usdface.io.maya_ascii import read_maya_ascii
+
+    assets = Path(__file__).resolve().parents[2] / "sample_assets"
+    made = build_corpus(Path(sys.argv[1] if len(sys.argv) > 1 else "out/corpus"), assets,
+                        read_maya_ascii(assets / "capture" / "JawMoCap.ma"))
+    for case, path in made.items():
+        if isinstance(path, Path) and path.is_file():
+            print(f"{case:18s} {path}")

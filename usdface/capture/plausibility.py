@@ -529,7 +529,8 @@ def _speed(capture: Capture, span: float, core, outlier_samples) -> Finding | No
         frames = capture.start_frame + np.flatnonzero(bad[:, m])
         worst = float(np.nanmax(v[bad[:, m], m]))
         ms = f" = {worst * cm / 100:.3g} m/s" if cm else ""
-        parts.append(f"{capture.names[m]} between frames {_frames_text(frames, 3)} ({worst:.3g} {u or 'units'}/s{ms})")
+        steps = ", ".join(f"{f}->{f + 1}" for f in frames[:3]) + (f", ... ({len(frames)} in all)" if len(frames) > 3 else "")
+        parts.append(f"{capture.names[m]} from frame {steps} ({worst:.3g} {u or 'units'}/s{ms})")
     names = [capture.names[m] for m in np.flatnonzero(per)]
     msg = (f"{_where(capture)}: marker(s) moving faster than {MAX_SPANS_PER_SECOND:g} face spans per second "
            f"({limit:.3g} {u or 'units'}/s): {'; '.join(parts)}: a marker swap or a glitch? "

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -85,7 +86,9 @@ def _described(path, what: str) -> str:
         source = (inputs.get(what) or {}).get("file")
     except Exception:  # noqa: BLE001 - provenance is informative only
         source = None
-    return f"{what} {path}" + (f" (imported from {source})" if source else "")
+    # a layer imported from a file is named by its file name and that file (inside `run` the
+    # layer sits in a private folder whose path would mean nothing to the user)
+    return f"{what} {Path(path).name} (imported from {source})" if source else f"{what} {path}"
 
 
 def _mesh_findings(mesh, mesh_name: str) -> list:
