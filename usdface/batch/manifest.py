@@ -342,7 +342,8 @@ def _parse_options(merged, allowed, mesh, capture, layout, output, where, i, ent
                 sigma_cm=args.sigma, threshold=args.threshold, pin_border=args.pin_border,
                 components=args.components, output=args.output_kind, seeds=args.seeds,
                 radius=list(args.radius), max_influences=args.max_influences, resample=args.resample,
-                start_frame=args.start_frame)
+                start_frame=args.start_frame, allow=list(args.allow), keep_zeros=args.keep_zeros,
+                drop_outliers=args.drop_outliers)
 
 
 def _culprit(message: str, merged: dict) -> str | None:

@@ -67,7 +67,8 @@ def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_ax
     Capture
         positions (F, M, 3) float64 in the file's units, Y-up, NaN where the residual is negative
         or (unless ``keep_zeros``) the sample is exactly (0, 0, 0); history ({"step": "read",
-        "format": "c3d", "up_axis": ..., "zero_samples": n, "zero_markers": {name: n}},).
+        "format": "c3d", "up_axis": ...},), plus ``"zero_samples": n, "zero_markers": {name: n}``
+        when zeros were read as gaps.
 
     Raises
     ------
@@ -125,13 +126,14 @@ def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_ax
     positions[invalid] = np.nan
     if up == "Z":
         positions = z_up_to_y_up(positions)
+    step = {"step": "read", "format": "c3d", "up_axis": up}
+    if zeros.any() and not keep_zeros:
+        step["zero_samples"] = int(zeros.sum())
+        step["zero_markers"] = {labels[m]: int(n) for m, n in enumerate(zeros.sum(axis=0)) if n}
     capture = Capture(
         names=tuple(labels), positions=positions, rate=capture_rate, units=unit,
         start_frame=int(c3d["header"]["points"]["first_frame"]), source=source,
-        history=({"step": "read", "format": "c3d", "up_axis": up,
-                  "zero_samples": 0 if keep_zeros else int(zeros.sum()),
-                  "zero_markers": {} if keep_zeros else {labels[m]: int(n) for m, n in enumerate(zeros.sum(axis=0))
-                                                         if n}},),
+        history=(step,),
     )
     capture.check_not_all_invalid()
     return capture
