@@ -29,7 +29,6 @@ the same parser as the command line, so a manifest shot means what the command w
 """
 from __future__ import annotations
 
-import argparse
 import glob
 import os
 import re
@@ -39,14 +38,9 @@ from pathlib import Path
 
 from ..errors import FormatError, InputError, OptionError
 
-#: capture suffixes that need `usdface track` first
-VIDEO_SUFFIXES = (".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
 #: processors a shot may list
 PROCESSORS = ("track", "run", "check")
 BATCH_KEYS = {"cache": (str, bool), "summary": (str,), "workers": (int,), "scheduler": (str,)}
-#: `usdface run` options a manifest does not take (the run pipeline does not use them, or they
-#: are the batch's business)
-_EXCLUDED = {"help", "json", "verbose", "quiet", "no_stabilize", "output"}
 _SHOT_ONLY = {"mesh", "capture", "output", "processors"}
 
 
@@ -66,7 +60,9 @@ class Shot:
 
     @property
     def is_video(self) -> bool:
-        return Path(self.capture).suffix.lower() in VIDEO_SUFFIXES
+        from ..processors.run import is_video
+
+        return is_video(self.capture)
 
 
 @dataclass
@@ -80,33 +76,12 @@ class Manifest:
     problems: list = field(default_factory=list)
 
 
-def _run_parser() -> argparse.ArgumentParser:
-    from ..cli import build_parser
-
-    parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    run = sub.choices["run"]
-
-    def error(message):
-        raise OptionError(message)
-
-    run.error = error
-    for action in run._actions:  # nested groups share the parser's error()
-        pass
-    return run
-
-
 def shot_keys() -> dict:
-    """{manifest key: argparse action} for every `usdface run` option a manifest takes."""
-    keys = {}
-    for action in _run_parser()._actions:
-        longs = [o for o in action.option_strings if o.startswith("--")]
-        if not longs:
-            continue
-        key = longs[0][2:].replace("-", "_")
-        if key not in _EXCLUDED:
-            keys[key] = action
-    return keys
+    """{manifest key: option field} for every `usdface run` option a manifest takes (the fields of
+    :class:`usdface.options.RunOptions`: a manifest key is the option's name)."""
+    from ..options import RunOptions, option_fields
+
+    return {f.name: f for f in option_fields(RunOptions)}
 
 
 def key_line(text: str, table: str, index: int | None, key: str) -> int | None:
@@ -238,7 +213,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                 options = _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems)
                 if options is None:
                     continue
-                if options.get("stiffness") and not _is_number(options["stiffness"]):
+                if isinstance(options.get("stiffness"), str):  # a JSON file of widths
                     st = _resolve(options["stiffness"], base)
                     if not st.is_file():
                         missing.append(f"{label}: stiffness {st}")
@@ -253,6 +228,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                                   processors=tuple(p for p in PROCESSORS if p in processors), layout=layout,
                                   entry=i, line=line))
     missing = list(dict.fromkeys(missing))
+    problems = list(dict.fromkeys(problems))  # a shot entry expands to many shots: report once
     if missing and check_files:
         problems.insert(0, f"{len(missing)} input file(s) not found:\n  " + "\n  ".join(missing))
     if problems:
@@ -280,76 +256,30 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
 
 
 def _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems) -> dict | None:
-    """Turn manifest values into `usdface run` arguments and parse them with the CLI's parser."""
-    argv = ["--mesh", mesh, "--capture", capture, "-o", output]
-    if layout is not None:
-        argv += ["--layout", layout]
-    for key, value in merged.items():
-        if key in _SHOT_ONLY or key == "layout":
-            continue
-        action = allowed[key]
-        opt = next(o for o in action.option_strings if o.startswith("--"))
-        table, idx = ("shots", i) if key in entry else ("defaults", None)
-        if key == "stabilize":
-            if value is False:
-                argv.append("--no-stabilize")
-            elif value is True or value == "auto":
-                argv += ["--stabilize", "auto"]
-            elif isinstance(value, list):
-                argv += ["--stabilize", ",".join(map(str, value))]
-            else:
-                argv += ["--stabilize", str(value)]
-            continue
-        if action.nargs == "?" and isinstance(value, bool):  # e.g. --auto [N]: true = the bare flag
-            if value:
-                argv.append(opt)
-            continue
-        if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
-            if not isinstance(value, bool):
-                problems.append(f"{where(table, idx, key)}: {key} = {value!r}: expected true or false")
-                return None
-            if value:
-                argv.append(opt)
-            continue
-        if isinstance(value, list):
-            argv += [opt] + [str(v) for v in value]
-        elif isinstance(value, bool) or isinstance(value, dict):
-            problems.append(f"{where(table, idx, key)}: {key} = {value!r}: expected a value for {opt}")
-            return None
-        else:
-            argv += [opt, str(value)]
+    """The shot's :class:`RunOptions` as a plain dict (it travels to workers), checked by the
+    options object itself, as the command line's values are."""
+    from ..options import RunOptions
+
+    values = {k: v for k, v in merged.items() if k not in _SHOT_ONLY}
+    values["layout"] = layout
     try:
-        args = _run_parser().parse_args(argv)
+        options = RunOptions.from_mapping(values, what="shot")
     except OptionError as exc:
         culprit = _culprit(str(exc), merged)
         loc = where(*(("shots", i) if culprit in entry else ("defaults", None)), culprit) if culprit else \
             f"shot entry {i + 1}"
         problems.append(f"{loc}: {exc}")
         return None
-    from ..cli import _neutral_arg, _stabilize_arg
-
-    try:
-        neutral = _neutral_arg(args.neutral)
-    except Exception as exc:  # noqa: BLE001 - UsdFaceError with the option named
-        problems.append(f"{where('shots', i, 'neutral')}: {exc}")
-        return None
-    return dict(layout=args.layout, auto=args.auto, method=args.method, backend=args.backend, rbf=args.rbf,
-                kernel=args.kernel, stiffness=args.stiffness, regularization=args.regularization,
-                polynomial=args.polynomial, retarget=args.retarget, mesh_units=args.mesh_units, units=args.units,
-                rate=args.rate, up_axis=args.up_axis, stabilize=_stabilize_arg(args.stabilize),
-                fill_gaps=args.fill_gaps, filter=args.filter, cutoff=args.cutoff,
-                trim=list(args.trim) if args.trim else None, neutral=neutral, region_radius_cm=args.region_radius,
-                sigma_cm=args.sigma, threshold=args.threshold, pin_border=args.pin_border,
-                components=args.components, output=args.output_kind, seeds=args.seeds,
-                radius=list(args.radius), max_influences=args.max_influences, resample=args.resample,
-                start_frame=args.start_frame, allow=list(args.allow), keep_zeros=args.keep_zeros,
-                drop_outliers=args.drop_outliers)
+    return options.to_dict()
 
 
 def _culprit(message: str, merged: dict) -> str | None:
-    m = re.search(r"--([a-z][a-z0-9-]*)", message)
+    """The manifest key an option error is about (the error names the command-line flag)."""
+    m = re.search(r"(--[a-z][a-z0-9-]*)", message)
     if m:
-        key = m.group(1).replace("-", "_")
+        flags = {f.metadata["flag"]: name for name, f in shot_keys().items()}
+        flags.update({f.metadata["negate"]: name for name, f in shot_keys().items() if f.metadata["negate"]})
+        key = flags.get(m.group(1))
         return key if key in merged else None
     return None
 

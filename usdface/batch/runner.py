@@ -45,9 +45,10 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
 
                 cache = ContentCache(cache_root)
             capture = shot.capture  # `run` tracks and lifts video captures itself
+            from ..options import RunOptions
             from ..processors.run import run
 
-            summary = run(shot.mesh, capture, shot.output, cache=cache, **shot.options)
+            summary = run(shot.mesh, capture, shot.output, RunOptions.from_mapping(shot.options), cache=cache)
             rec["steps"] = {k: v.get("seconds") for k, v in summary["steps"].items()}
             rec["frames"] = summary["frames"]
             rec["vertices"] = summary["vertices"]
@@ -115,22 +116,23 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     version, options, input names and sha256); and each layer's provenance names the usdface
     version and inputs whose sha256 equal the files in OUTDIR (the chain was not edited since).
     """
-    from ..processors.run import OUTPUT_FILES, run_options, run_provenance
+    from ..options import RunOptions
+    from ..processors.run import output_files, run_provenance
 
     out = Path(shot.output)
-    missing = [f for f in OUTPUT_FILES if not (out / f).is_file()]
+    opts = RunOptions.from_mapping(shot.options)
+    files = output_files(opts.output_kind, video=shot.is_video)
+    missing = [f for f in files if not (out / f).is_file()]
     if missing:
         return False, f"missing {', '.join(missing)}"
     try:
         summary = json.loads((out / "summary.json").read_text())
     except (OSError, ValueError):
         return False, "summary.json unreadable"
-    opts = {k: v for k, v in shot.options.items()}
     capture = shot.capture
     if not Path(capture).is_file():
         return False, "capture missing"
-    expected = run_provenance(shot.mesh, capture, run_options(**opts), layout=opts.get("layout"),
-                              stiffness=opts.get("stiffness"))
+    expected = run_provenance(shot.mesh, capture, opts)
     if summary.get("provenance") != expected:
         old = summary.get("provenance") or {}
         what = [k for k in ("usdfaceVersion", "options", "inputs") if old.get(k) != expected.get(k)]
@@ -138,13 +140,13 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     from ..usd.layers import file_digest
 
     digests = {}
-    for name in ("mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc", "anim.usdc"):
+    for name in [f for f in files if f.endswith((".usdc", ".usda")) and not f.startswith("shot")]:
         prov = _layer_provenance(out / name)
         if prov is None or prov.get("usdfaceVersion") != __version__:
             return False, f"{name}: provenance absent or from another usdface version"
         for role, rec in json.loads(prov.get("inputs", "{}")).items():
             f = out / rec["file"]
-            if f.name in OUTPUT_FILES:
+            if f.name in files:
                 if f.name not in digests:
                     digests[f.name] = file_digest(f)
                 if digests[f.name] != rec["sha256"]:

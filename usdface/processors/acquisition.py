@@ -596,7 +596,7 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
 # ================================================================================================
 def register_cli(subparsers) -> None:
     """Add ``stereo``, ``detect``, ``landmarks train`` and ``register`` to the ``usdface`` command."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "stereo", help="stereo pair -> disparity map and metric scan mesh layer",

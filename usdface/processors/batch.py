@@ -26,7 +26,7 @@ def batch(manifest, *, workers=None, scheduler=None, resume=False, force=False, 
 
 
 def register_cli(subparsers) -> None:
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "batch", help="run a shot manifest (TOML) in parallel with Dask: local cores or a farm",

@@ -221,7 +221,7 @@ def _cmd_evaluate(args) -> dict:
 
 def register_cli(subparsers) -> None:
     """Add ``usdface evaluate`` to the CLI's subparsers."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "evaluate", help="transfer quality against ground-truth expression shapes (markdown table)",

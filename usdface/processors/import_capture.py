@@ -13,10 +13,13 @@ log = logging.getLogger("usdface")
 
 
 def load_capture(path, *, units=None, rate=None, up_axis=None, keep_zeros=False) -> Capture:
-    """Read any capture usdface understands: a capture file (.ma .c3d .trc .csv) or a capture layer.
+    """Read any capture usdface understands: a capture file (.ma .c3d .trc .csv), a capture layer,
+    or (Python API) an in-memory stage or layer holding a marker set.
 
     ``keep_zeros``: C3D samples at exactly (0, 0, 0) stay positions instead of gaps."""
-    if Path(path).suffix.lower() in USD_SUFFIXES:
+    from ..usd.layers import is_in_memory
+
+    if is_in_memory(path) or Path(path).suffix.lower() in USD_SUFFIXES:
         from ..usd.capture_layer import read_capture_layer
 
         capture = read_capture_layer(path)
@@ -40,7 +43,8 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     Order: trim -> plausibility checks (:mod:`usdface.capture.plausibility`; ``drop_outliers``
     turns outlier samples into gaps; ``allow`` accepts findings by code) -> marker-swap detection
     (reported) -> gap filling -> noise filter -> resample -> neutral frame -> head stabilisation
-    (relative to the neutral frame; judged on held-out markers) -> time offset.
+    (relative to the neutral frame; judged on held-out markers) -> time offset (time code = frame
+    index from 0, or from ``start_frame``).
 
     Raises PlausibilityError on a plausibility error that ``allow`` does not accept.
     """
@@ -110,8 +114,12 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
             checked += plausibility.report([finding], allow=allow)
     if checked:
         reports["plausibility"] = checked
-    if start_frame is not None:
-        capture = timing.offset(capture, start_frame=start_frame)
+    # one time-code convention for every output: frame index from 0 unless --start-frame says
+    # otherwise (C3D counts from 1, TRC from its first time; the source's number is in the history)
+    target = 0 if start_frame is None else start_frame
+    if capture.start_frame != target:
+        reports["timeCodes"] = {"sourceStart": int(capture.start_frame), "start": int(target)}
+        capture = timing.offset(capture, start_frame=target)
     return capture, reports
 
 
@@ -130,9 +138,10 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
     layer is copied, byte for byte what this call would write.
     """
     from ..capture import plausibility
+    from ..usd.layers import is_in_memory
 
     out = check_output_path(output)
-    if out.suffix.lower() not in (".usdc", ".usd", ".usda"):
+    if not is_in_memory(out) and out.suffix.lower() not in (".usdc", ".usd", ".usda"):
         raise OptionError(f"-o {out}: a capture layer is a .usdc (or .usd/.usda) file")
     options = dict(units=units, rate=rate, up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,
                    filter=filter, cutoff=cutoff if filter else None, trim=trim, start_frame=start_frame,
@@ -169,6 +178,10 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
             summary["_text"] = [line.replace("{output}", str(out)) for line in stored["_text"]]
             summary["_text"][0] += " (from the cache)"
             status = "hit"
+            # the findings were logged when the entry was made: say them again for this shot
+            for f in summary.get("reports", {}).get("plausibility", []):
+                if not (f["allowed"] and f["severity"] == "warning"):
+                    log.warning("%s", f["message"])
     summary["cache"] = {"status": status, "key": key}
     return summary
 

@@ -13,8 +13,11 @@ log = logging.getLogger("usdface")
 
 
 def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
-    """Read a mesh file or a USD mesh layer; returns (mesh, regions already on it)."""
-    if Path(path).suffix.lower() in USD_SUFFIXES:
+    """Read a mesh file, a USD mesh layer or (Python API) an in-memory stage or layer; returns
+    (mesh, regions already on it)."""
+    from ..usd.layers import is_in_memory
+
+    if is_in_memory(path) or Path(path).suffix.lower() in USD_SUFFIXES:
         from ..usd.mesh_layer import read_mesh_layer
 
         mesh, regions = read_mesh_layer(path)

@@ -183,7 +183,7 @@ def _fit_camera(image_points, model_points, names, *, what: str):
 
 def register_cli(sub) -> None:
     """Add `usdface lift` to the CLI."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = sub.add_parser("lift", help="lift 2D marker tracks (video) to a 3D capture layer on the mesh",
                        description="Map 2D image tracks of face markers to 3D motion on a character mesh: fit a "

@@ -198,7 +198,8 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, max_in
 
 def register_cli(sub) -> None:
     """Add `usdface skel` to the CLI."""
-    from ..cli import add_common_options, add_transfer_options
+    from ..cliargs import add_common_options, add_options
+    from ..options import TransferOptions
 
     p = sub.add_parser("skel", help="skeletal keyframes (UsdSkel): a joint per marker, skinned like the transfer",
                        description="Write a UsdSkel layer: one SkelRoot, a Skeleton with a head joint and one joint "
@@ -212,7 +213,7 @@ def register_cli(sub) -> None:
     p.add_argument("--analysis", required=True, help="analysis layer (from `usdface distances`)")
     p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"],
                    help="which distance matrix of the analysis layer (default: its only one)")
-    add_transfer_options(p)
+    add_options(p, TransferOptions)
     g = p.add_argument_group("skinning")
     g.add_argument("--max-influences", default=str(DEFAULT_MAX_INFLUENCES), metavar="K|all",
                    help="joints per vertex, head included (default 8); 'all' keeps every weight (exact)")
@@ -232,8 +233,10 @@ def register_cli(sub) -> None:
 
 
 def _cmd_skel(args) -> dict:
+    from ..cliargs import options_from_args
+    from ..options import TransferOptions
+
     return skel(args.mesh, args.capture, args.binding, args.analysis, args.output,
                 max_influences=args.max_influences, negative_weights=args.negative_weights,
-                weight_fit=args.weight_fit, head_motion=args.head_motion, verify=args.verify, rbf=args.rbf,
-                kernel=args.kernel, stiffness=args.stiffness, regularization=args.regularization,
-                polynomial=args.polynomial, method=args.method)
+                weight_fit=args.weight_fit, head_motion=args.head_motion, verify=args.verify, method=args.method,
+                **options_from_args(TransferOptions, args).to_dict())

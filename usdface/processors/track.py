@@ -199,8 +199,11 @@ def track(video, output, *, seeds=None, auto: int | None = None, layout=None, me
     result = track_frames(progress(frames(), total=reader.n_frames, desc="track", unit="frame"), detector, names, xy,
                           initial_area=area, rate=reader.rate, size=reader.size, gate=gate)
     elapsed = time.perf_counter() - t0
-    capture = result.to_capture(source=str(video), units="px", start_frame=reader.first_frame)
+    # time code = frame index from 0 (the first frame read), whatever the sequence's numbering;
+    # the first file's number is kept in the options (firstFrame) to map back to the footage
+    capture = result.to_capture(source=str(video), units="px", start_frame=0)
     options = {"seeds": None if seeds is None or isinstance(seeds, dict) else Path(seeds).name, "auto": auto,
+               "firstFrame": int(reader.first_frame),
                "radius": list(r), "rate": reader.rate, "threshold": threshold, "minStd": min_std, "gate": result.stats["gate"],
                "layout": Path(layout).name if layout else None}
     inputs = {"video": video if reader.kind == "movie" else None}
@@ -264,7 +267,7 @@ def track(video, output, *, seeds=None, auto: int | None = None, layout=None, me
 
 def register_cli(subparsers) -> None:
     """Add ``usdface track`` to the CLI's subparsers."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "track", help="track coloured face markers in a video -> 2D track layer (+ CSV, preview)",

@@ -27,7 +27,10 @@ OUTPUT_SUFFIXES = (".usd", ".usda", ".usdc")
 
 
 def check_output_path(path: str | os.PathLike, *, suffixes=OUTPUT_SUFFIXES, option: str = "-o") -> Path:
-    """Validate an output path before any work: existing folder, known suffix."""
+    """Validate an output path before any work: existing folder, known suffix. An in-memory
+    target (an Sdf.Layer or a Usd.Stage, from the Python API) is returned as it is."""
+    if is_in_memory(path):
+        return path
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise OptionError(f"{option} {p}: expected a file ending in {' or '.join(suffixes)}")
@@ -114,6 +117,10 @@ def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.Path
     for role, path in inputs.items():
         if path is None:
             continue
+        if is_in_memory(path):  # the Python API's in-memory input: no file, no digest
+            layer = path.GetRootLayer() if isinstance(path, Usd.Stage) else path
+            recorded[role] = {"layer": layer.GetDisplayName() or "anonymous", "inMemory": True}
+            continue
         recorded[role] = {"file": Path(path).name, "sha256": file_digest(path)}
     return {
         "usdfaceVersion": __version__,
@@ -135,7 +142,12 @@ def get_provenance(layer_or_stage) -> dict:
 
 
 def open_stage(path: str | os.PathLike, *, what: str = "layer") -> Usd.Stage:
-    """Open a USD file, with an error naming it when it is missing or unreadable."""
+    """Open a USD file, with an error naming it when it is missing or unreadable. A Usd.Stage is
+    returned as it is and an Sdf.Layer opened as a stage (in-memory input from the Python API)."""
+    if isinstance(path, Usd.Stage):
+        return path
+    if isinstance(path, Sdf.Layer):
+        return Usd.Stage.Open(path, Usd.Stage.LoadAll)
     p = Path(path)
     if not p.exists():
         raise InputError(f"{what} {p}: no such file")
@@ -155,3 +167,161 @@ def relative_asset_path(target: str | os.PathLike, from_layer: str | os.PathLike
     rel = os.path.relpath(Path(target).resolve(), Path(from_layer).resolve().parent)
     rel = rel.replace(os.sep, "/")
     return rel if rel.startswith(".") else "./" + rel
+
+
+# -- in-memory targets (the Python API) -----------------------------------------------------------
+
+def is_in_memory(target) -> bool:
+    """Whether ``target`` is a layer or stage object rather than a file path."""
+    return isinstance(target, (Sdf.Layer, Usd.Stage))
+
+
+def describe(source) -> str:
+    """A file path as given, or an in-memory stage/layer by its root layer's name (for messages)."""
+    if isinstance(source, Usd.Stage):
+        return f"in-memory stage {source.GetRootLayer().GetDisplayName() or source.GetRootLayer().identifier}"
+    if isinstance(source, Sdf.Layer):
+        return f"in-memory layer {source.GetDisplayName() or source.identifier}"
+    return str(source)
+
+
+def target_layer(target) -> Sdf.Layer:
+    """The layer an in-memory target means: the layer itself, or a stage's edit target layer."""
+    if isinstance(target, Sdf.Layer):
+        return target
+    edit = target.GetEditTarget()
+    if not edit.GetMapFunction().isIdentity:
+        raise OptionError("into: the stage's edit target maps paths (a variant or reference edit target); "
+                          "pass the Sdf.Layer to author into instead")
+    return edit.GetLayer()
+
+
+class InMemoryLayer:
+    """Author into an existing layer, all or nothing (the Python API's counterpart of AtomicLayer).
+
+    The processor authors into a private anonymous layer; only when the ``with`` block succeeds
+    are its opinions merged into the target (:func:`merge_layer`), so an error leaves the target
+    exactly as it was.
+    """
+
+    path = None
+
+    def __init__(self, target):
+        self.into = target_layer(target)
+        self.stage: Usd.Stage | None = None
+
+    def __enter__(self) -> Usd.Stage:
+        self.staged = Sdf.Layer.CreateAnonymous("usdface.usda")
+        self.stage = Usd.Stage.Open(self.staged)
+        return self.stage
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        if exc_type is None:
+            merge_layer(self.staged, self.into)
+        self.stage = None
+        return False
+
+
+def output_layer(target):
+    """The context manager a writer authors through: :class:`AtomicLayer` for a file path,
+    :class:`InMemoryLayer` for an Sdf.Layer or a Usd.Stage."""
+    return InMemoryLayer(target) if is_in_memory(target) else AtomicLayer(target)
+
+
+def checkpoint(stage: Usd.Stage) -> None:
+    """Save what a long write has authored so far (flat memory on long .usdc writes); nothing
+    to do for an in-memory target."""
+    layer = stage.GetRootLayer()
+    if not layer.anonymous:
+        layer.Save()
+
+
+def add_sublayer(stage: Usd.Stage, source, output) -> None:
+    """Sublayer ``source`` (the layer an output builds on, e.g. the mesh) by a path relative to
+    ``output``, so the output opens alone. In memory (either side) the caller composes: nothing."""
+    if is_in_memory(source) or is_in_memory(output) or output is None:
+        return
+    stage.GetRootLayer().subLayerPaths.append(relative_asset_path(source, output))
+
+
+def new_stage(layers) -> Usd.Stage:
+    """An in-memory stage sublayering ``layers`` (Sdf.Layer, Usd.Stage or file paths), with the
+    first one's units, up axis and default prim and the first time range found (see
+    :func:`usdface.api.new_stage`)."""
+    stage = Usd.Stage.CreateInMemory()
+    root = stage.GetRootLayer()
+    opened = []
+    for item in layers:
+        layer = item.GetRootLayer() if isinstance(item, Usd.Stage) else item if isinstance(item, Sdf.Layer) \
+            else Sdf.Layer.FindOrOpen(str(Path(item).resolve()))
+        if layer is None:
+            raise InputError(f"{item}: cannot be read as USD")
+        root.subLayerPaths.append(layer.identifier)
+        opened.append(layer)
+    if opened:
+        first = opened[0].pseudoRoot
+        for key in ("metersPerUnit", "upAxis", "defaultPrim"):
+            if first.HasInfo(key):
+                root.pseudoRoot.SetInfo(key, first.GetInfo(key))
+        timed = next((lay for lay in opened if lay.HasStartTimeCode() or lay.HasTimeCodesPerSecond()), None)
+        if timed is not None:
+            for key in ("timeCodesPerSecond", "framesPerSecond", "startTimeCode", "endTimeCode"):
+                if timed.pseudoRoot.HasInfo(key):
+                    root.pseudoRoot.SetInfo(key, timed.pseudoRoot.GetInfo(key))
+    stage._usdface_layers = opened  # keep anonymous sublayers alive as long as the stage
+    return stage
+
+
+_LAYER_FIELDS = ("defaultPrim", "metersPerUnit", "upAxis", "timeCodesPerSecond", "framesPerSecond",
+                 "startTimeCode", "endTimeCode")
+
+
+def merge_layer(src: Sdf.Layer, dst: Sdf.Layer) -> None:
+    """Merge the opinions of ``src`` into ``dst``: every property ``src`` authors replaces the same
+    property in ``dst`` (time samples included), prims and their metadata are added or updated
+    (applied schemas are unioned), everything else in ``dst`` stays. ``dst`` is replaced in one
+    step at the end (``TransferContent``), so a failure part-way leaves it unchanged."""
+    work = Sdf.Layer.CreateAnonymous("merge.usda")
+    work.TransferContent(dst)
+    for key in _LAYER_FIELDS:
+        if src.pseudoRoot.HasInfo(key):
+            work.pseudoRoot.SetInfo(key, src.pseudoRoot.GetInfo(key))
+    if src.customLayerData:
+        data = dict(work.customLayerData)
+        data.update(src.customLayerData)
+        work.customLayerData = data
+    for sub in src.subLayerPaths:
+        if sub not in work.subLayerPaths:
+            work.subLayerPaths.append(sub)
+
+    def merge_prim(spec: Sdf.PrimSpec) -> None:
+        path = spec.path
+        target = work.GetPrimAtPath(path)
+        if target is None:
+            Sdf.CopySpec(src, path, work, path)  # a new prim: its whole subtree
+            return
+        for key in spec.ListInfoKeys():
+            if key == "specifier":
+                if spec.specifier == Sdf.SpecifierDef:
+                    target.specifier = Sdf.SpecifierDef
+            elif key == "typeName":
+                if spec.typeName:
+                    target.typeName = spec.typeName
+            elif key == "apiSchemas":
+                have = list(target.GetInfo(key).GetAddedOrExplicitItems()) if target.HasInfo(key) else []
+                new = [s for s in spec.GetInfo(key).GetAddedOrExplicitItems() if s not in have]
+                op = Sdf.TokenListOp()
+                op.prependedItems = have + new
+                target.SetInfo(key, op)
+            else:
+                target.SetInfo(key, spec.GetInfo(key))
+        for prop in spec.properties:
+            if work.GetPropertyAtPath(prop.path) is not None:
+                work.GetPrimAtPath(path).RemoveProperty(work.GetPropertyAtPath(prop.path))
+            Sdf.CopySpec(src, prop.path, work, prop.path)
+        for child in spec.nameChildren:
+            merge_prim(child)
+
+    for root in src.rootPrims:
+        merge_prim(root)
+    dst.TransferContent(work)

@@ -141,53 +141,27 @@ def write_skel_layer(path, rig, weights, *, mesh_path, units, rate: float, start
 
 
 def skinned_points(path, *, times=None, stage: Usd.Stage | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Skin the face mesh of a skeleton layer with UsdSkel (SkeletonQuery + SkinningQuery).
+    """Skin the face mesh of a skeleton layer with UsdSkel (:class:`usdface.usd.evaluate.FaceEvaluator`).
 
     Parameters
     ----------
-    path : path of a skeleton layer (or any stage with one SkelRoot and a skinned mesh)
-    times : sequence of time codes, optional (default: every time sample of the animation)
+    path : path of a skeleton layer (or any stage with a skinned face mesh)
+    times : sequence of time codes, optional (default: every time code that moves the face)
 
     Returns
     -------
     times : ndarray (F,)
-    points : ndarray (F, N, 3) float64, skeleton space (the mesh's space), as
-        ``UsdSkel.SkinningQuery.ComputeSkinnedPoints`` gives them.
+    points : ndarray (F, N, 3) float64 in the mesh's own space (where the point cache lives), as
+        ``UsdSkel.BakeSkinning`` would bake them.
     """
-    stage = stage or open_stage(path, what="skeleton")
-    roots = [p for p in stage.Traverse() if p.IsA(UsdSkel.Root)]
-    if len(roots) != 1:  # one SkelRoot per character
-        raise InputError(f"skeleton {path}: expected one SkelRoot, found {len(roots)}")
-    cache = UsdSkel.Cache()
-    root = UsdSkel.Root(roots[0])
-    cache.Populate(root, Usd.TraverseInstanceProxies())
-    bindings = cache.ComputeSkelBindings(root, Usd.TraverseInstanceProxies())
-    if not bindings:
-        raise InputError(f"skeleton {path}: no skinned mesh under {roots[0].GetPath()}")
-    binding = bindings[0]
-    skel_query = cache.GetSkelQuery(binding.GetSkeleton())
-    skin_query = binding.GetSkinningTargets()[0]
-    mesh = UsdGeom.Mesh(skin_query.GetPrim())
-    rest = mesh.GetPointsAttr().Get()
-    if times is None:
-        anim = skel_query.GetAnimQuery()
-        times = anim.GetJointTransformTimeSamples() if anim else []
-        times = list(times) or [Usd.TimeCode.Default().GetValue()]
-    out = np.empty((len(times), len(rest), 3))
-    xf = UsdGeom.XformCache()
-    parent = mesh.GetPrim().GetParent()
-    for i, t in enumerate(times):
-        tc = Usd.TimeCode(t)
-        xforms = skel_query.ComputeSkinningTransforms(tc)
-        pts = Vt.Vec3fArray(rest)
-        if not skin_query.ComputeSkinnedPoints(xforms, pts, tc):
-            raise InputError(f"skeleton {path}: UsdSkel could not skin {mesh.GetPath()} at time {t}")
-        # skinned points are in skeleton space; the mesh's parent space is where the point cache lives
-        xf.SetTime(tc)
-        m = np.array(xf.GetLocalToWorldTransform(skel_query.GetPrim()) *
-                     xf.GetLocalToWorldTransform(parent).GetInverse(), dtype=np.float64)
-        out[i] = np.asarray(pts, dtype=np.float64) @ m[:3, :3] + m[3, :3]
-    return np.asarray(times, dtype=np.float64), out
+    from .evaluate import FaceEvaluator
+
+    ev = FaceEvaluator(stage, source=str(path)) if stage is not None else FaceEvaluator.open(path, what="skeleton")
+    if not ev.skinned:
+        raise InputError(f"skeleton {path}: the face mesh {ev.mesh_path} is not skinned (no SkelRoot ancestor, "
+                         "no bound Skeleton with a bind pose, or no joint influences)")
+    times = ev.resolve_times(times)
+    return times, ev.points_range(times, space="mesh")
 
 
 def read_skel_report(path) -> dict:

@@ -153,15 +153,20 @@ def _check_distance_matrices(prim: Usd.Prim, time_range=None):
         ns = f"usdface:distanceMatrix:{name}"
         names = prim.GetAttribute(f"{ns}:markerNames").Get() or []
         m = len(names) + len(prim.GetAttribute(f"{ns}:constraintVertices").Get() or [])
-        primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{name}")
-        if not primvar or not primvar.HasValue():
-            errors.append(_err(prim, "DistanceMatrixMissing", f"distance matrix {name!r}: primvars:usdface:distance:{name} missing"))
+        from .analysis_layer import vertex_distances
+
+        values = vertex_distances(prim, name)
+        if values is None:
+            errors.append(_err(prim, "DistanceMatrixMissing",
+                               f"distance matrix {name!r}: {ns}:vertexDistances missing"))
             continue
-        values = np.asarray(primvar.Get())
-        if primvar.GetElementSize() != m or values.size != n_points * m:
+        legacy = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{name}")
+        size_ok = values.size == n_points * m and (not legacy or not legacy.HasValue()
+                                                    or legacy.GetElementSize() == m)
+        if not size_ok:
             errors.append(_err(prim, "DistanceMatrixShape",
-                               f"distance matrix {name!r}: {values.size} values with elementSize {primvar.GetElementSize()}, "
-                               f"expected {n_points} vertices x {m} centres"))
+                               f"distance matrix {name!r}: {values.size} values, expected {n_points} vertices x "
+                               f"{m} centres"))
         elif not np.isfinite(values).all() or (values < 0).any():
             errors.append(_err(prim, "DistanceMatrixValues", f"distance matrix {name!r} has negative, NaN or inf entries"))
         mm = prim.GetAttribute(f"{ns}:centreDistances").Get()
@@ -252,6 +257,9 @@ def check_layer(path: str | os.PathLike) -> list[Finding]:
             s = sites[0]
             site = str(s.GetPrim().GetPath()) if s.IsPrim() else (s.GetLayer().identifier if s.GetLayer() else "")
         severity, message = _SEVERITY.get(error.GetType(), "error"), error.GetMessage()
+        if "UnresolvableDependency" in error.GetIdentifier() and "'anon:" in message:
+            # an in-memory layer (Python API) resolves in this session, not through the asset resolver
+            severity, message = "warning", message + " (an in-memory layer: resolvable in this session only)"
         if image_space and "MissingMetersPerUnit" in error.GetIdentifier():
             # 2D tracks are in pixels: no metric scale exists, and a made-up one would mislead
             severity, message = "warning", message + " (a 2D image-track layer: pixels have no metric scale)"

@@ -1,0 +1,482 @@
+"""Options, named once: the dataclasses shared by the command line, batch manifests and the Python API.
+
+Every option of the pipeline is one field of one of the frozen dataclasses below. The field's
+metadata gives its command-line flag, its help text and the function that checks and converts a
+value, so the three ways of giving an option mean the same thing:
+
+- the command line builds its arguments from the fields (:mod:`usdface.cliargs`): ``--pin-border``
+  is the field ``pin_border``, and the help text is the field's;
+- a batch manifest's keys are the field names (``pin_border = "all"``);
+- Python code passes the object: ``RunOptions(method="euclidean", trim=(0, 300))``.
+
+Values are checked and converted when the object is made (``__post_init__``), whatever their
+source: a bad value raises :class:`~usdface.errors.OptionError` naming the command-line flag
+(``--max-influences 0: expected an integer >= 1``), which a manifest reports with its line.
+
+Groups (each a dataclass, :class:`RunOptions` combines them): :class:`CaptureOptions`,
+:class:`BindOptions`, :class:`DistanceOptions`, :class:`TransferOptions`, :class:`SkelOptions`,
+:class:`VideoOptions`. ``options.group(TransferOptions)`` takes one group out of a combined object.
+"""
+from __future__ import annotations
+
+import difflib
+import json
+from dataclasses import MISSING, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from .errors import OptionError
+from .units import METERS_PER_UNIT
+
+__all__ = [
+    "CaptureOptions", "BindOptions", "DistanceOptions", "TransferOptions", "SkelOptions", "VideoOptions",
+    "RunOptions", "OUTPUT_KINDS", "option_fields", "flag_of",
+]
+
+UNITS = tuple(METERS_PER_UNIT)
+METHODS = ("euclidean", "geodesic", "hybrid")
+BACKENDS = ("graph", "heat", "exact")
+KERNELS = ("gaussian", "multiquadric", "inverse_multiquadric", "thin_plate_spline", "cubic")
+#: deliverables `run` can write, in the order they are written
+OUTPUT_KINDS = ("points", "skel")
+#: aliases of --output-kind lists
+OUTPUT_ALIASES = {"both": ("points", "skel"), "all": OUTPUT_KINDS}
+
+
+# -- coercion: one function per kind of value, used by every entry point --------------------------
+
+def _show(v) -> str:
+    """A value as the user typed it (command-line strings without quotes)."""
+    return v if isinstance(v, str) else repr(v)
+
+
+def _is_blank(v) -> bool:
+    return v is None or (isinstance(v, str) and v.strip().lower() in ("", "none"))
+
+
+def _choice(*choices: str) -> Callable:
+    def coerce(value, flag):
+        if value not in choices:
+            raise OptionError(f"{flag} {_show(value)}: expected one of {', '.join(choices)}")
+        return value
+    return coerce
+
+
+def _optional(coerce: Callable) -> Callable:
+    def wrapped(value, flag):
+        return None if _is_blank(value) else coerce(value, flag)
+    return wrapped
+
+
+def _number(value, flag, *, kind=float, what="a number"):
+    if isinstance(value, bool):
+        raise OptionError(f"{flag} {_show(value)}: expected {what}")
+    try:
+        x = kind(value)
+    except (TypeError, ValueError):
+        raise OptionError(f"{flag} {_show(value)}: expected {what}") from None
+    if kind is int and isinstance(value, float) and value != x:
+        raise OptionError(f"{flag} {_show(value)}: expected {what}")
+    if kind is float and not x == x:  # NaN
+        raise OptionError(f"{flag} {_show(value)}: expected {what}")
+    return x
+
+
+def _positive_float(value, flag):
+    x = _number(value, flag, what="a number > 0")
+    if not x > 0 or x == float("inf"):
+        raise OptionError(f"{flag} {_show(value)}: expected a number > 0")
+    return x
+
+
+def _nonnegative_float(value, flag):
+    x = _number(value, flag, what="a number >= 0")
+    if not x >= 0 or x == float("inf"):
+        raise OptionError(f"{flag} {_show(value)}: expected a number >= 0")
+    return x
+
+
+def _unit_interval(value, flag):
+    x = _number(value, flag, what="a number in [0, 1]")
+    if not 0.0 <= x <= 1.0:
+        raise OptionError(f"{flag} {_show(value)}: expected a number in [0, 1]")
+    return x
+
+
+def _positive_int(value, flag):
+    n = _number(value, flag, kind=int, what="a whole number > 0")
+    if n <= 0:
+        raise OptionError(f"{flag} {_show(value)}: expected a whole number > 0")
+    return n
+
+
+def _int(value, flag):
+    return _number(value, flag, kind=int, what="a whole number")
+
+
+def _flag(value, flag):
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.lower() in ("true", "false", "yes", "no", "1", "0"):
+        return value.lower() in ("true", "yes", "1")
+    raise OptionError(f"{flag} {_show(value)}: expected true or false")
+
+
+def _stabilize(value, flag):
+    """None/False: no stabilisation; True/'auto': automatic; 'A,B,C' or a list: these markers."""
+    if value is None or value is False:
+        return None
+    if value is True or value == "auto":
+        return "auto"
+    if isinstance(value, str):
+        value = [v.strip() for v in value.split(",")]
+    if isinstance(value, (list, tuple)):
+        names = tuple(str(v).strip() for v in value if str(v).strip())
+        if len(names) < 3:
+            raise OptionError(f"{flag} {','.join(names) or value!r}: expected 'auto' or at least 3 marker names "
+                              "(a rigid head needs three markers)")
+        return names
+    raise OptionError(f"{flag} {_show(value)}: expected 'auto' or a comma-separated list of marker names")
+
+
+def _pair(kind: Callable, what: str) -> Callable:
+    def coerce(value, flag):
+        if isinstance(value, str):
+            value = value.replace(",", " ").split()
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            raise OptionError(f"{flag} {_show(value)}: expected two values ({what})")
+        return tuple(kind(v, flag) for v in value)
+    return coerce
+
+
+def _trim(value, flag):
+    start, end = _pair(_int, "START END")(value, flag)
+    if start < 0 or end <= start:
+        raise OptionError(f"{flag} {start} {end}: expected 0 <= START < END (0-based frame indices; END excluded)")
+    return (start, end)
+
+
+def _radius(value, flag):
+    r1, r2 = _pair(_positive_float, "R1 R2 in pixels")(value, flag)
+    if r2 < r1:
+        raise OptionError(f"{flag} {r1:g} {r2:g}: expected R1 <= R2 (the smallest and largest dot radius)")
+    return (r1, r2)
+
+
+def _neutral(value, flag):
+    if value == "auto":
+        return "auto"
+    n = _number(value, flag, kind=int, what="a frame index (0-based, after --trim) or 'auto'")
+    if n < 0:
+        raise OptionError(f"{flag} {_show(value)}: expected a frame index >= 0 or 'auto'")
+    return n
+
+
+def _regularization(value, flag):
+    if value == "auto":
+        return "auto"
+    return _nonnegative_float(value, flag)
+
+
+def _stiffness(value, flag):
+    """A width in mesh units, a {marker: width} dict, or the path of a JSON file holding one."""
+    if isinstance(value, Mapping):
+        widths = {}
+        for k, v in value.items():
+            widths[str(k)] = _positive_float(v, f"{flag} {k}")
+        return widths
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return _positive_float(value, flag)
+    if isinstance(value, (str, Path)):
+        try:
+            return _positive_float(float(value), flag)
+        except (ValueError, OptionError):
+            pass
+        return str(value)
+    raise OptionError(f"{flag} {_show(value)}: expected a width in mesh units or a JSON file {{marker: width}}")
+
+
+def _auto(value, flag):
+    """--auto: bind without a layout (True), or for a video find N dots (an integer)."""
+    if value is None or value is False:
+        return False
+    if value is True or value == "":
+        return True
+    return _positive_int(value, flag)
+
+
+def _output_kinds(value, flag):
+    if isinstance(value, str):
+        items = [v.strip() for v in value.split(",") if v.strip()]
+    elif isinstance(value, (list, tuple)):
+        items = [str(v).strip() for v in value]
+    else:
+        raise OptionError(f"{flag} {_show(value)}: expected a comma list of {', '.join(OUTPUT_KINDS)} (or all, both)")
+    kinds = []
+    for item in items:
+        expanded = OUTPUT_ALIASES.get(item, (item,))
+        for k in expanded:
+            if k not in OUTPUT_KINDS:
+                raise OptionError(f"{flag} {item}: expected a comma list of {', '.join(OUTPUT_KINDS)} "
+                                  "(or all = every kind, both = points,skel)")
+            kinds.append(k)
+    if not kinds:
+        raise OptionError(f"{flag}: expected at least one of {', '.join(OUTPUT_KINDS)}")
+    return tuple(k for k in OUTPUT_KINDS if k in kinds)
+
+
+def _max_influences(value, flag):
+    if value == "all":
+        return "all"
+    n = _number(value, flag, kind=int, what="an integer >= 1 or 'all'")
+    if n < 1:
+        raise OptionError(f"{flag} {_show(value)}: expected an integer >= 1 (joints per vertex) or 'all'")
+    return n
+
+
+def _path(value, flag):
+    if not isinstance(value, (str, Path)):
+        raise OptionError(f"{flag} {_show(value)}: expected a file path")
+    return str(value)
+
+
+# -- the option field ------------------------------------------------------------------------------
+
+def option(default, *, flag: str, help: str, coerce: Callable | None = None, group: str,
+           choices: tuple | None = None, metavar=None, nargs=None, negate: str | None = None,
+           const=None) -> Any:
+    """A dataclass field that is a usdface option (see the module docstring).
+
+    ``flag``: the long command-line flag; ``negate``: a second flag setting the value to None
+    (``--no-stabilize``); ``const``: value of the flag given without an argument (``nargs="?"``).
+    Booleans: a field defaulting to False is set by ``flag``, one defaulting to True is cleared
+    by ``--no-<name>`` (give that as ``flag``).
+    """
+    if coerce is None and choices is not None:
+        coerce = _choice(*choices)
+    return field(default=default, metadata={
+        "flag": flag, "help": help, "coerce": coerce, "group": group, "choices": choices,
+        "metavar": metavar, "nargs": nargs, "negate": negate, "const": const})
+
+
+#: order of the option groups in `--help`
+GROUP_ORDER = ("mesh", "capture reading and conditioning", "binding", "video capture", "distances", "transfer",
+               "deliverables", "skeleton")
+
+
+def option_fields(cls) -> list:
+    """The option fields of an options class (every field has the metadata above), by group."""
+    found = [f for f in fields(cls) if "flag" in f.metadata]
+    rank = {g: i for i, g in enumerate(GROUP_ORDER)}
+    return sorted(found, key=lambda f: rank.get(f.metadata["group"], len(rank)))
+
+
+def flag_of(cls, name: str) -> str:
+    """The command-line flag of option ``name`` of ``cls``."""
+    return next(f.metadata["flag"] for f in fields(cls) if f.name == name)
+
+
+class _Options:
+    """Behaviour shared by the option groups (a mixin: the groups are frozen dataclasses)."""
+
+    def __post_init__(self):
+        for f in option_fields(type(self)):
+            value = getattr(self, f.name)
+            coerce = f.metadata["coerce"]
+            if coerce is not None and not (value is None and f.default is None):
+                object.__setattr__(self, f.name, coerce(value, f.metadata["flag"]))
+        self.validate()
+
+    def validate(self) -> None:
+        """Checks that involve several options (subclasses add theirs)."""
+
+    def group(self, cls):
+        """The options of group ``cls`` taken from this (combined) object."""
+        return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})
+
+    def replace(self, **changes):
+        """A copy with some options changed (checked like a new object)."""
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        """Every option as plain JSON types (tuples become lists)."""
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = list(v) if isinstance(v, tuple) else v
+        return out
+
+    def record(self) -> dict:
+        """The options as recorded in provenance: JSON types, files by name (no folders, so the
+        same job gives the same record wherever it runs)."""
+        rec = self.to_dict()
+        for name in ("layout", "seeds"):
+            if rec.get(name):
+                rec[name] = Path(rec[name]).name
+        st = rec.get("stiffness")
+        if isinstance(st, str):
+            rec["stiffness"] = Path(st).name
+        return json.loads(json.dumps(rec, sort_keys=True, default=str))
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping, *, what: str = "options"):
+        """Build from a dict of ``{option name: value}`` (a manifest's keys); unknown names are an
+        error that suggests the closest name."""
+        known = {f.name for f in fields(cls)}
+        unknown = [k for k in mapping if k not in known]
+        if unknown:
+            k = unknown[0]
+            close = difflib.get_close_matches(k, sorted(known), n=1)
+            raise OptionError(f"{what}: unknown option {k!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+                              + f"; expected one of {', '.join(sorted(known))}")
+        return cls(**dict(mapping))
+
+
+# -- the groups ------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CaptureOptions(_Options):
+    """Reading and conditioning a capture (`import-capture`, `run`)."""
+
+    units: str | None = option(None, flag="--units", choices=UNITS, group="capture reading and conditioning",
+                               help="units of the capture file when it does not declare them (CSV)")
+    rate: float | None = option(None, flag="--rate", coerce=_positive_float, metavar="HZ",
+                                group="capture reading and conditioning",
+                                help="capture rate when the file does not declare it")
+    up_axis: str | None = option(None, flag="--up-axis", choices=("Y", "Z"), group="capture reading and conditioning",
+                                 help="the source's up axis (default: Z for C3D, Y otherwise)")
+    stabilize: Any = option(None, flag="--stabilize", coerce=_stabilize, metavar="auto|M1,M2,...", nargs="?",
+                            const="auto", negate="--no-stabilize", group="capture reading and conditioning",
+                            help="remove rigid head motion: 'auto' picks the most rigid markers, or name them")
+    fill_gaps: int | None = option(None, flag="--fill-gaps", coerce=_positive_int, metavar="N",
+                                   group="capture reading and conditioning", help="fill gaps of at most N frames")
+    filter: str | None = option(None, flag="--filter", choices=("butterworth", "savgol"),
+                                group="capture reading and conditioning", help="zero-phase noise filter")
+    cutoff: float = option(8.0, flag="--cutoff", coerce=_positive_float, metavar="HZ",
+                           group="capture reading and conditioning",
+                           help="filter cutoff (below half the capture rate)")
+    trim: tuple | None = option(None, flag="--trim", coerce=_trim, nargs=2, metavar=("START", "END"),
+                                group="capture reading and conditioning",
+                                help="keep frames START..END-1 (0-based frame indices of the file)")
+    start_frame: int | None = option(None, flag="--start-frame", coerce=_int, metavar="F",
+                                     group="capture reading and conditioning",
+                                     help="time code of the first frame after trimming (default 0)")
+    resample: float | None = option(None, flag="--resample", coerce=_positive_float, metavar="HZ",
+                                    group="capture reading and conditioning", help="resample to this rate")
+    neutral: Any = option(None, flag="--neutral", coerce=_neutral, metavar="FRAME|auto",
+                          group="capture reading and conditioning",
+                          help="neutral frame (0-based index after trimming) or 'auto' (default: the first frame)")
+
+
+@dataclass(frozen=True)
+class BindOptions(_Options):
+    """Binding markers to the surface (`bind`, `run`)."""
+
+    retarget: str = option("displacement", flag="--retarget", choices=("displacement", "similarity"),
+                           group="binding",
+                           help="displacement: capture motion rotated, not scaled (the paper); similarity: also scaled")
+
+
+@dataclass(frozen=True)
+class DistanceOptions(_Options):
+    """Distance matrices (`distances`, `run`)."""
+
+    method: str = option("hybrid", flag="--method", choices=METHODS, group="distances",
+                         help="Euclidean (Eq. 6), geodesic (Eq. 7) or hybrid (Eq. 8)")
+    backend: str = option("graph", flag="--backend", choices=BACKENDS, group="distances",
+                          help="geodesic back-end: shortest edge paths (the paper's), heat method, exact polyhedral")
+    region_radius: float = option(1.0, flag="--region-radius", coerce=_nonnegative_float, metavar="CM",
+                                  group="distances",
+                                  help="hybrid: geodesic regions = vertices within this distance of the mouth/eye "
+                                       "loops (cm)")
+    sigma: float = option(2.0, flag="--sigma", coerce=_positive_float, metavar="CM", group="distances",
+                          help="hybrid: weight width (cm)")
+    threshold: float = option(0.6, flag="--threshold", coerce=_unit_interval, group="distances",
+                              help="hybrid: geodesic term skipped where w <= this")
+    pin_border: str = option("upper", flag="--pin-border", choices=("upper", "all", "none"), group="distances",
+                             help="outer border as zero-displacement centres: above the mouth corners (the jaw's "
+                                  "border moves with the jaw), all of it, or none")
+    components: str = option("error", flag="--components", choices=("error", "euclidean"), group="distances",
+                             help="markers on different mesh components: error, or Euclidean distance across them")
+
+
+@dataclass(frozen=True)
+class TransferOptions(_Options):
+    """The RBF transfer (`transfer`, `skel`, `run`)."""
+
+    rbf: str = option("interpolate", flag="--rbf", choices=("paper", "interpolate"), group="transfer",
+                      help="paper: Eqs. 1-5 as published; interpolate: exact RBF solve")
+    kernel: str = option("gaussian", flag="--kernel", choices=KERNELS, group="transfer", help="radial basis function")
+    stiffness: Any = option(None, flag="--stiffness", coerce=_stiffness, metavar="WIDTH|JSON", group="transfer",
+                            help="kernel width in mesh units for every marker, or a JSON file {marker: width} "
+                                 "(default: 1.1 x the median nearest-marker distance, about 2 cm on a face)")
+    regularization: Any = option("auto", flag="--regularization", coerce=_regularization, metavar="LAMBDA|auto",
+                                 group="transfer",
+                                 help="ridge term added to the kernel matrix (interpolate mode). auto: exact "
+                                      "interpolation unless it amplifies marker motion more than 25x (geodesic "
+                                      "kernels can), then the lambda with the least amplification")
+    polynomial: bool = option(False, flag="--polynomial", coerce=_flag, group="transfer",
+                              help="add a linear polynomial term (interpolate mode)")
+
+    def validate(self) -> None:
+        super().validate()
+        if self.rbf == "paper" and (self.polynomial or self.regularization not in ("auto", 0.0)):
+            raise OptionError("--polynomial and --regularization apply to --rbf interpolate only "
+                              "(paper mode solves nothing)")
+
+
+@dataclass(frozen=True)
+class SkelOptions(_Options):
+    """Skeletal keyframes (`skel`, `run --output-kind skel`)."""
+
+    max_influences: Any = option(8, flag="--max-influences", coerce=_max_influences, metavar="K|all",
+                                 group="skeleton", help="joints per vertex ('all' keeps every weight)")
+
+
+@dataclass(frozen=True)
+class VideoOptions(_Options):
+    """Tracking a video of painted dots inside `run`."""
+
+    seeds: str | None = option(None, flag="--seeds", coerce=_path, metavar="SEEDS.json", group="video capture",
+                               help="JSON {marker: [x, y]} of every dot on the first frame (pixels)")
+    radius: tuple = option((3.0, 10.0), flag="--radius", coerce=_radius, nargs=2, metavar=("R1", "R2"),
+                           group="video capture", help="dot radius range in pixels")
+
+
+@dataclass(frozen=True)
+class RunOptions(CaptureOptions, BindOptions, DistanceOptions, TransferOptions, SkelOptions, VideoOptions):
+    """Everything `usdface run` (and a batch shot, and :func:`usdface.api.run`) takes besides its
+    inputs and output folder. Defaults are the main job's."""
+
+    layout: str | None = option(None, flag="--layout", coerce=_path, metavar="LAYOUT.json", group="binding",
+                                help="marker layout JSON (usdface-layout/1); required for a video capture")
+    auto: Any = option(False, flag="--auto", coerce=_auto, metavar="N", nargs="?", const=True, group="binding",
+                       help="bind automatically; for a video capture, --auto N finds N dots on the first frame")
+    mesh_units: str | None = option(None, flag="--mesh-units", choices=UNITS, group="mesh",
+                                    help="units of the mesh file (OBJ has none: cm)")
+    stabilize: Any = option("auto", flag="--stabilize", coerce=_stabilize, metavar="auto|M1,M2,...", nargs="?",
+                            const="auto", negate="--no-stabilize", group="capture reading and conditioning",
+                            help="remove rigid head motion: 'auto' picks the most rigid markers, or name them; "
+                                 "--no-stabilize keeps the head motion in the marker displacements")
+    output_kind: tuple = option(("points",), flag="--output-kind", coerce=_output_kinds, metavar="KIND[,KIND]",
+                                group="deliverables",
+                                help="what to deliver, a comma list: points (time-sampled mesh points, anim.usdc), "
+                                     "skel (UsdSkel keyframes, skel.usdc); 'all' for every kind ('both' = "
+                                     "points,skel)")
+    head_motion: bool = option(True, flag="--no-head-motion", coerce=_flag, group="deliverables",
+                               help="drop the head motion removed by stabilisation (by default every deliverable "
+                                    "carries it as a time-sampled transform on the face's root prim /Face)")
+
+    def validate(self) -> None:
+        super().validate()
+        if self.layout is not None and self.auto is True:
+            raise OptionError("--layout and --auto: give one of them (a layout places the markers; --auto aligns "
+                              "the neutral marker cloud)")
+
+
+def defaults_of(cls) -> dict:
+    """{name: default} of an options class."""
+    out = {}
+    for f in fields(cls):
+        out[f.name] = f.default if f.default is not MISSING else f.default_factory()  # type: ignore[misc]
+    return out
