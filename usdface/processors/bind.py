@@ -79,8 +79,10 @@ def bind(mesh_path, capture_path, output, *, layout=None, auto=False, retarget="
 
 def _described(path, what: str) -> str:
     """'mesh PATH' plus the file it was imported from, when the layer's provenance says."""
-    from ..usd.layers import get_provenance, open_stage
+    from ..usd.layers import describe, get_provenance, is_in_memory, open_stage
 
+    if is_in_memory(path):
+        return f"{what} {describe(path)}"
     try:
         inputs = json.loads(get_provenance(open_stage(path, what=what)).get("inputs", "{}"))
         source = (inputs.get(what) or {}).get("file")

@@ -96,7 +96,9 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
         raise OptionError(f"--depth: expected tangent or zero; got {depth!r}")
     min_cos = DEFAULT_MIN_COS if min_cos is None else float(min_cos)
     tracks = read_tracks(tracks_path, rate=rate)
-    if not Path(mesh_path).is_file():
+    from ..usd.layers import is_in_memory
+
+    if not is_in_memory(mesh_path) and not Path(mesh_path).is_file():
         raise InputError(f"--mesh {mesh_path}: no such file")
     mesh, _ = load_mesh(mesh_path, units=mesh_units)
     names, tri, bary, place_src = _bound_surface(mesh, binding, layout)
@@ -203,10 +205,12 @@ def register_cli(sub) -> None:
     p.add_argument("--neutral", type=int, metavar="FRAME", help="neutral frame index (default: the tracks')")
     p.add_argument("--rate", type=float, metavar="HZ", help="track rate when a CSV does not declare it")
     p.add_argument("-o", "--output", required=True, help="capture layer to write (.usdc)")
-    from ..cli import add_plausibility_options
+    from ..cliargs import add_options, options_from_args
+    from ..options import PlausibilityOptions
 
-    add_plausibility_options(p, capture=False)
+    add_options(p, PlausibilityOptions)
     add_common_options(p)
     p.set_defaults(func=lambda args: lift(args.tracks, args.mesh, args.output, binding=args.binding,
                                           layout=args.layout, depth=args.depth, neutral=args.neutral,
-                                          rate=args.rate, mesh_units=args.mesh_units, allow=args.allow))
+                                          rate=args.rate, mesh_units=args.mesh_units,
+                                          allow=options_from_args(PlausibilityOptions, args).allow))
