@@ -1,18 +1,25 @@
 """The ``usdface`` command: one entry point, one subcommand per processor.
 
-Thin by design: parse options, call a processor, report. Every UsdFaceError becomes one line on
-stderr and exit code 2; a failed `check` exits 1.
+Thin by design: parse options, call a processor, report. Every error reaches the user as one line
+on stderr (no traceback) and an exit code: 2 bad input or usage (a UsdFaceError; also argparse's
+own usage errors), 1 a failure while working (environment faults included: disk full, read-only
+folder, permission, out of memory, a USD error, an output folder locked by another run; a failed
+`check`; a batch with a failed shot), 130 interrupted by Ctrl-C (SIGINT), 143 stopped by SIGTERM
+(how farm schedulers stop jobs), both after removing the partial work.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import logging
+import os
+import signal
 import sys
+import threading
 
 from . import __version__
 from .cliargs import add_common_options, add_options, options_from_args
-from .errors import UsdFaceError
+from .errors import Interrupted, UsdFaceError
 from .options import BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
 
 log = logging.getLogger("usdface")
@@ -107,7 +114,10 @@ def _add_subcommands(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="PNG to write")
     p.add_argument("--frame", type=float, help="time code to show (default: the layer's start)")
     p.add_argument("--frames", type=float, nargs="+", metavar="F", help="several time codes: a contact sheet")
-    p.add_argument("--view", choices=["front", "left", "right", "side"], default="front")
+    from .preview.camera import VIEW_CHOICES
+
+    p.add_argument("--view", choices=VIEW_CHOICES, default="front",
+                   help="camera (the list playblast shares; turntable turns only in a playblast: a still is the front)")
     p.add_argument("--size", type=int, default=768, help="image size in pixels (square)")
     p.add_argument("--color", choices=["regions", "displacement", "error", "hybrid-weight", "none"], default="regions",
                    help="colour the surface by region, by displacement from the rest pose, by error against "
@@ -207,6 +217,8 @@ PLUGIN_COMMANDS = (
     "usdface.processors.skel",
     "usdface.processors.acquisition",
     "usdface.processors.tissue",
+    "usdface.processors.playblast",
+    "usdface.processors.report",
 )
 
 
@@ -235,19 +247,98 @@ def _print_summary(summary: dict, as_json: bool, quiet: bool) -> None:
         print(line)
 
 
+#: argparse destinations naming files a command writes; every other argument naming an existing
+#: file is an input, and no output may be an input (usdface.fileutil.same_file_problems)
+OUTPUT_DESTS = ("output", "csv", "preview", "disparity", "report", "layout_output", "summary")
+
+
+def _option_labels(parser: argparse.ArgumentParser) -> dict:
+    """{dest: how the user wrote it ("-o", "--mesh", "input")} for the chosen subcommand."""
+    labels = {}
+    todo = [parser]
+    while todo:
+        p = todo.pop()
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                todo.extend(action.choices.values())
+            elif action.dest not in labels:
+                labels[action.dest] = action.option_strings[0] if action.option_strings else action.dest
+    return labels
+
+
+def refuse_outputs_over_inputs(args, parser: argparse.ArgumentParser | None = None) -> None:
+    """Every command: refuse (exit 2) when a file it would write is one of the files it reads."""
+    from .fileutil import refuse_overwriting_inputs
+
+    labels = _option_labels(parser) if parser is not None else {}
+    outputs, inputs = {}, {}
+    for dest, value in vars(args).items():
+        if dest in ("func", "command"):
+            continue
+        label = labels.get(dest, dest)
+        for v in (value if isinstance(value, list) else [value]):
+            if not isinstance(v, (str, os.PathLike)) or not str(v):
+                continue
+            if dest in OUTPUT_DESTS:
+                outputs[label] = v
+            elif os.path.exists(v):
+                inputs.setdefault(label, []).append(os.fspath(v))
+    if outputs and inputs:
+        from .usd.layers import composed_files
+
+        for label, paths in list(inputs.items()):
+            for p in paths:
+                deps = composed_files(p)
+                if deps:
+                    inputs[f"composed by {label} {p}"] = deps
+        refuse_overwriting_inputs(outputs, inputs)
+
+
+class _terminate_as_interrupt:
+    """SIGTERM raises :class:`~usdface.errors.Interrupted` (like Ctrl-C), so partial work is removed."""
+
+    def __enter__(self):
+        self.previous = None
+        if threading.current_thread() is threading.main_thread() and hasattr(signal, "SIGTERM"):
+            self.previous = signal.signal(signal.SIGTERM, self._raise)
+        return self
+
+    @staticmethod
+    def _raise(signum, frame):
+        raise Interrupted(signum)
+
+    def __exit__(self, *exc):
+        if self.previous is not None:
+            signal.signal(signal.SIGTERM, self.previous)
+        return False
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     level = logging.ERROR if args.quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
     logging.basicConfig(level=level, format="usdface: %(levelname)s: %(message)s", stream=sys.stderr)
+    name = f"usdface {args.command}"
     try:
-        summary = args.func(args)
+        with _terminate_as_interrupt():
+            refuse_outputs_over_inputs(args, parser)
+            summary = args.func(args)
     except UsdFaceError as exc:
-        print(f"usdface {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except Interrupted as exc:
+        print(f"{name}: stopped by {exc}; partial work removed", file=sys.stderr)
+        return exc.exit_code
     except KeyboardInterrupt:
-        print(f"usdface {args.command}: interrupted", file=sys.stderr)
+        print(f"{name}: interrupted; partial work removed", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - file system, memory and USD errors: one line, exit 1
+        if not isinstance(exc, (OSError, MemoryError)) and not type(exc).__module__.startswith("pxr"):
+            raise  # a bug: the traceback is what a report needs
+        from .fileutil import describe_exception
+
+        print(f"{name}: error: {describe_exception(exc)}", file=sys.stderr)
+        return 1
     _print_summary(summary, args.json, args.quiet)
     return int(summary.get("_exit", 0))
 

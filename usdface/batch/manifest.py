@@ -202,7 +202,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
             for capture in captures:
                 names = {"mesh": Path(mesh).stem, "capture": Path(capture).stem}
                 try:
-                    output = str(_resolve(str(merged["output"]).format(**names), out_base))
+                    output = str(_output_path(str(merged["output"]).format(**names), out_base))
                     layout = None
                     if merged.get("layout") is not None:
                         found = _expand(str(merged["layout"]).format(**names), base, "layout", label, missing)
@@ -223,10 +223,22 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                     if not sd.is_file():
                         missing.append(f"{label}: seeds {sd}")
                     options["seeds"] = str(sd)
+                loc = where(*(("shots", i) if "output" in entry else ("defaults", None)), "output")
+                problem = _outside(output, out_root, out_base, f"{loc}: output = {merged['output']!r}")
+                if problem:
+                    problems.append(problem)
+                    continue
                 name = f"{names['mesh']}/{names['capture']}"
                 shots.append(Shot(name=name, mesh=mesh, capture=capture, output=output, options=options,
                                   processors=tuple(p for p in PROCESSORS if p in processors), layout=layout,
                                   entry=i, line=line))
+    cache = batch.get("cache", ".usdface-cache")
+    cache_path = None if cache is False else str(_output_path(cache, out_base))
+    summary_path = str(_output_path(batch.get("summary", "usdface-batch-summary.json"), out_base))
+    for key, value in (("cache", cache_path), ("summary", summary_path)):
+        problem = _outside(value, out_root, out_base, f"{where('batch', None, key)}: {key} = {batch.get(key)!r}")
+        if value is not None and problem:
+            problems.append(problem)
     missing = list(dict.fromkeys(missing))
     problems = list(dict.fromkeys(problems))  # a shot entry expands to many shots: report once
     if missing and check_files:
@@ -234,24 +246,19 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
     if problems:
         raise InputError(f"manifest {path}:\n" + "\n".join(problems) if len(problems) > 1 or missing
                          else problems[0])
-    seen = {}
-    clashes = []
-    for s in shots:
-        if s.output in seen:
-            clashes.append(f"{s.name} and {seen[s.output]} both write {s.output}")
-        seen[s.output] = s.name
+    clashes = _clashes(shots, cache_path, summary_path)
     if clashes:
         raise InputError(f"manifest {path}: shots share an output folder (name outputs with {{mesh}} and "
                          "{capture}):\n  " + "\n  ".join(clashes))
+    overwrites = _inputs_overwritten(shots)
+    if overwrites:
+        raise InputError(f"manifest {path}: a shot would overwrite its own inputs:\n  " + "\n  ".join(overwrites))
     unwritable = _unwritable([s.output for s in shots])
-    cache = batch.get("cache", ".usdface-cache")
-    cache_path = None if cache is False else str(_resolve(cache, out_base))
     if cache_path:
         unwritable += _unwritable([cache_path], what="cache folder")
     if unwritable:
         raise InputError(f"manifest {path}: cannot write:\n  " + "\n  ".join(unwritable))
-    return Manifest(path=path, shots=shots, cache=cache_path,
-                    summary=str(_resolve(batch.get("summary", "usdface-batch-summary.json"), out_base)),
+    return Manifest(path=path, shots=shots, cache=cache_path, summary=summary_path,
                     workers=batch.get("workers"), scheduler=batch.get("scheduler"))
 
 
@@ -306,7 +313,57 @@ def _is_number(v) -> bool:
 
 def _resolve(p, base: Path) -> Path:
     p = Path(os.path.expanduser(str(p)))
-    return p if p.is_absolute() else base / p
+    return Path(os.path.normpath(p if p.is_absolute() else base / p))
+
+
+def _output_path(p, base: Path) -> Path:
+    """Where an output really goes: absolute, ``..`` folded, symbolic links followed, so one folder
+    has one name (``x/../same`` is ``same``)."""
+    return Path(os.path.realpath(_resolve(p, base)))
+
+
+def _outside(path, out_root, out_base: Path, what: str) -> str | None:
+    """The problem when ``--out-root`` is given and ``path`` resolves outside it (else None)."""
+    if out_root is None or path is None:
+        return None
+    root = Path(os.path.realpath(out_base))
+    p = Path(path)
+    if p == root or root in p.parents:
+        return None
+    return (f"{what} resolves to {p}, outside --out-root {root}; with --out-root, outputs, the cache and the "
+            "summary stay inside it")
+
+
+def _clashes(shots, cache_path, summary_path) -> list[str]:
+    """Shots writing one folder, or a shot folder that holds (or is inside) the cache or the summary."""
+    clashes, seen = [], {}
+    for s in shots:
+        if s.output in seen:
+            clashes.append(f"{s.name} and {seen[s.output]} both write {s.output}")
+        seen[s.output] = s.name
+    for s in shots:
+        out = Path(s.output)
+        if cache_path and (Path(cache_path) == out or out in Path(cache_path).parents or Path(cache_path) in out.parents):
+            clashes.append(f"{s.name} writes {out}, which overlaps the cache folder {cache_path}")
+        if Path(summary_path).parent == out:
+            clashes.append(f"{s.name} writes {out}, the folder of the batch summary {summary_path}")
+    return clashes
+
+
+def _inputs_overwritten(shots) -> list[str]:
+    """Shots whose output files (what `usdface run` writes into their folder) are their inputs."""
+    from ..fileutil import same_file_problems
+    from ..processors.run import is_video, output_files
+
+    found = []
+    for s in shots:
+        files = output_files(s.options.get("output_kind") or ("points",), video=is_video(s.capture))
+        stiffness = s.options.get("stiffness")
+        inputs = {"mesh": s.mesh, "capture": s.capture, "layout": s.layout, "seeds": s.options.get("seeds"),
+                  "stiffness": stiffness if isinstance(stiffness, str) and os.path.isfile(stiffness) else None}
+        outputs = [("output", Path(s.output))] + [("output", Path(s.output) / f) for f in files]
+        found += [f"{s.name}: {p}" for p in same_file_problems(outputs, inputs)]
+    return found
 
 
 def _expand(pattern, base: Path, what: str, label: str, missing: list) -> list[str]:

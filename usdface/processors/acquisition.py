@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import ComputeError, InputError, MeshError, OptionError, list_names
 
 log = logging.getLogger("usdface")
@@ -81,7 +82,9 @@ def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", dispar
     from ..usd.layers import check_output_path, provenance
 
     t0 = time.perf_counter()
-    out = check_output_path(output) if output is not None else None
+    inputs = {"left": left, "right": right, "--calib": calib, "--ground-truth": ground_truth}
+    out = check_output_path(output, inputs=inputs) if output is not None else None
+    refuse_overwriting_inputs({"--disparity": disparity}, inputs)
     disp_path = check_image_output(disparity, suffixes=FLOAT_MAP_SUFFIXES, option="--disparity") if disparity else None
     if method not in METHODS:
         raise OptionError(f"--method must be one of {', '.join(METHODS)}; got {method!r}")
@@ -222,6 +225,7 @@ def detect(image, output, *, preview=None, aam=None, min_size=None, min_neighbor
     from ..scan.detect import detect_faces, draw_detections, features_dict
     from ..scan.landmarks import _atomic_text
 
+    refuse_overwriting_inputs({"-o": output, "--preview": preview}, {"image": image, "--aam": aam})
     out = Path(output)
     if out.suffix.lower() != ".json":
         raise OptionError(f"-o {out}: expected a .json features file")
@@ -289,6 +293,7 @@ def landmarks_train(images, output, *, landmarks=None, points_dir=None, augment=
     from ..scan.detect import largest_face_box
     from ..scan.landmarks import FACE_LANDMARKS, read_landmarks
 
+    refuse_overwriting_inputs({"-o": output}, {"images": [str(p) for p in images], "--landmarks": landmarks})
     out = Path(output)
     if out.suffix != ".npz":
         raise OptionError(f"-o {out}: an AAM model is written as .npz")
@@ -463,7 +468,10 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
     from ..usd.mesh_layer import read_mesh_layer, write_mesh_layer
 
     t0 = time.perf_counter()
-    out = check_output_path(output)
+    inputs = {"--generic": generic, "--scan": scan, "--landmarks": landmarks,
+              "--generic-landmarks": generic_landmarks, "--layout": layout, "--image": image, "--aam": aam}
+    out = check_output_path(output, inputs=inputs)
+    refuse_overwriting_inputs({"--layout-output": layout_output}, inputs)
     gpath = Path(generic)
     mesh, regions = read_mesh_layer(generic)
     if not regions:

@@ -25,7 +25,7 @@ def bind(mesh_path, capture_path, output, *, layout=None, auto=False, retarget="
     from ..usd.capture_layer import read_capture_layer
     from ..usd.mesh_layer import read_mesh_layer, write_binding_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"--mesh": mesh_path, "--capture": capture_path, "--layout": layout})
     if (layout is None) == (not auto):
         raise OptionError("bind: give exactly one of --layout LAYOUT.json or --auto")
     allow = parse_allow(allow)

@@ -51,6 +51,9 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     from ..capture import gaps, neutral as neutral_mod, plausibility, swaps, timing
 
     reports: dict = {}
+    # how the conditioned frames map to the source's (a playblast beside the source video needs it)
+    timing_report = {"sourceRate": float(capture.rate), "sourceFrames": int(capture.n_frames),
+                     "trimStart": int(trim[0]) if trim is not None else 0}
     if trim is not None:
         start, end = trim
         stop = capture.n_frames if end is None else end
@@ -120,6 +123,9 @@ def condition_capture(capture: Capture, *, trim=None, fill_gaps=None, filter=Non
     if capture.start_frame != target:
         reports["timeCodes"] = {"sourceStart": int(capture.start_frame), "start": int(target)}
         capture = timing.offset(capture, start_frame=target)
+    timing_report.update(rate=float(capture.rate), frames=int(capture.n_frames),
+                         startTimeCode=int(capture.start_frame))
+    reports["timing"] = timing_report
     return capture, reports
 
 
@@ -140,7 +146,7 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
     from ..capture import plausibility
     from ..usd.layers import is_in_memory
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"input": input})
     if not is_in_memory(out) and out.suffix.lower() not in (".usdc", ".usd", ".usda"):
         raise OptionError(f"-o {out}: a capture layer is a .usdc (or .usd/.usda) file")
     options = dict(units=units, rate=rate, up_axis=up_axis, stabilize=stabilize, fill_gaps=fill_gaps,

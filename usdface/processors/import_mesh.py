@@ -45,7 +45,7 @@ def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
     from ..mesh.topology import subset_faces, border_surface, boundary_loops, find_hole_regions, mesh_topology
     from ..usd.mesh_layer import write_mesh_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"input": input})
     mesh, regions = load_mesh(input, units=units)
     mesh.check_degenerate()
     if up_axis.upper() == "Z":  # Z-up source: (x, y, z) -> (x, z, -y)

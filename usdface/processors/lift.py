@@ -91,7 +91,8 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
     from ..usd.capture_layer import write_capture_layer
     from .import_mesh import load_mesh
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"tracks": tracks_path, "--mesh": mesh_path, "--binding": binding,
+                                            "--layout": layout})
     if depth not in ("tangent", "zero"):
         raise OptionError(f"--depth: expected tangent or zero; got {depth!r}")
     min_cos = DEFAULT_MIN_COS if min_cos is None else float(min_cos)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import OptionError
 
 
@@ -50,6 +51,7 @@ def preview(path, output, *, frame=None, frames=None, view="front", size=768, co
     from ..usd.layers import open_stage
     from ..usd.scene import read_scene_frame
 
+    refuse_overwriting_inputs({"-o": output}, {"file": path, "--reference": reference})
     if not str(output).lower().endswith(".png"):
         raise OptionError(f"-o {output}: expected a .png file")
     if color == "error" and reference is None:

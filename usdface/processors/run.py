@@ -1,19 +1,19 @@
 """`usdface run`: the main job, raw files (or USD) to a shot that plays in usdview.
 
 import-mesh -> import-capture (stabilised) -> bind -> distances -> transfer -> shot.usda.
-All files are written into a private folder inside OUTDIR and moved into place only when every
-step has succeeded, so a failed run leaves OUTDIR as it was.
+All files are written into a private folder inside OUTDIR and committed as a whole only when every
+step has succeeded (usdface/shot_commit.py): a failed run leaves OUTDIR as it was, a crash at any
+moment leaves the old shot or the new one (or an interrupted commit that the next run completes),
+and OUTDIR is locked while a run writes it.
 """
 from __future__ import annotations
 
 import json
 import os
-import shutil
-import tempfile
 import time
 from pathlib import Path
 
-from ..errors import OptionError, UsdFaceError
+from ..errors import EnvironmentFault, OptionError, ResourceError, UsdFaceError, WriteError
 from ..options import CaptureOptions, RunOptions, TransferOptions
 
 def is_video(path) -> bool:
@@ -111,12 +111,28 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
 
     parse_stiffness(o.stiffness)  # a bad --stiffness fails now, not after the distances
     files = output_files(kinds, video=video)
+    from ..shot_commit import ShotSession, check_run_paths, run_id
+
+    stiffness_file = o.stiffness if isinstance(o.stiffness, str) and Path(o.stiffness).is_file() else None
+    inputs = {"--mesh": mesh, "--capture": capture, "--layout": o.layout, "--seeds": o.seeds,
+              "--stiffness": stiffness_file}
+    check_run_paths(out, files, inputs)  # no output is an input, before any work
     prov = run_provenance(mesh, capture, o)
     created = [d for d in [out, *out.parents] if not d.exists()]
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        from ..fileutil import write_error
+
+        raise write_error(out, exc) from None
     started = time.perf_counter()
     steps: dict = {}
-    work = Path(tempfile.mkdtemp(prefix=".usdface-run-", dir=out))
+    session = ShotSession(out, run_id(prov), inputs=inputs)
+    try:
+        work = session.open()  # locks OUTDIR, completes an interrupted commit, removes dead runs' temporaries
+    except BaseException:
+        _remove_created(created, out)
+        raise
     capture_kw = o.group(CaptureOptions).to_dict()
     try:
         f = {name: work / name for name in files}
@@ -155,12 +171,13 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
                                  f["skel.usdc"], max_influences=o.max_influences, head_motion=o.head_motion,
                                  **transfer_options)
         cap = steps["import-capture"]
+        record = session.record(files)  # the shot stages list every file's sha256 and provenance id
         for shot_name, motion in shot_stages(kinds):
             write_shot_stage(f[shot_name], layers=[f[motion], f["analysis.usdc"], f["binding.usda"]],
                              rate=cap["rate"], start=cap["startTimeCode"],
                              end=cap["startTimeCode"] + cap["frames"] - 1, units=steps["import-mesh"]["units"],
                              # markers follow the face: head-stabilised unless the head motion is delivered
-                             stabilized_capture=cap["stabilized"] and not o.head_motion)
+                             stabilized_capture=cap["stabilized"] and not o.head_motion, record=record)
         summary = {
             "outputDir": str(out), "shot": str(out / "shot.usda"), "mesh": str(mesh), "capture": str(capture),
             "method": o.method, "backend": o.backend if o.method != "euclidean" else None, "rbf": o.rbf,
@@ -169,26 +186,30 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
             "vertices": steps["import-mesh"]["points"],
             "steps": {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in steps.items()},
             "seconds": round(time.perf_counter() - started, 3),
-            "provenance": prov,
+            "provenance": prov, "runId": session.run_id, "files": list(files),
         }
         # paths in the summary name the final files, not the private work folder
         text = json.dumps(summary, indent=2, default=str).replace(str(work), str(out))
-        f["summary.json"].write_text(text + "\n")
-        for name in files:
-            os.replace(work / name, out / name)
+        session.write_text("summary.json", text + "\n")
+        session.commit(files)
     except UsdFaceError as exc:
         step = next(reversed(steps), None)
         failed = _next_step(step, video=video, output_kind=kinds)
-        message = str(exc).replace(str(work) + os.sep, "").replace(str(work), str(out))
+        message = str(exc).replace(str(work) + os.sep, str(out) + os.sep).replace(str(work), str(out))
         raise type(exc)(f"{failed} step failed: {message}") from None
+    except Exception as exc:  # noqa: BLE001 - file system, memory and USD errors become one line
+        from ..fileutil import describe_exception
+
+        if not isinstance(exc, (OSError, MemoryError)) and not type(exc).__module__.startswith("pxr"):
+            raise
+        step = _next_step(next(reversed(steps), None), video=video, output_kind=kinds)
+        message = describe_exception(exc).replace(str(work) + os.sep, str(out) + os.sep).replace(str(work), str(out))
+        kind = ResourceError if isinstance(exc, MemoryError) else WriteError if isinstance(exc, OSError) \
+            else EnvironmentFault
+        raise kind(f"{step} step failed: {message}") from None
     finally:
-        shutil.rmtree(work, ignore_errors=True)
-        if not (out / "summary.json").exists():
-            for d in created:  # the run made these folders: leave the disk as it was
-                try:
-                    d.rmdir()
-                except OSError:
-                    break
+        session.close()
+        _remove_created(created, out)
     summary = json.loads(text)
     b = summary["steps"]["bind"]
     tr = summary["steps"].get("transfer") or summary["steps"]["skel"]
@@ -210,6 +231,17 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
           f"{summary['steps']['skel']['maxInfluences']} influences per vertex"] if "skel" in summary["steps"] else []) \
       + [f"  total {summary['seconds']:.1f} s; files: {', '.join(files)}"]
     return summary
+
+
+def _remove_created(created, out: Path) -> None:
+    """Remove the folders a failed run made (leave the disk as it was)."""
+    if (out / "summary.json").exists():
+        return
+    for d in created:
+        try:
+            d.rmdir()
+        except OSError:
+            break
 
 
 def _next_step(done, *, video: bool, output_kind) -> str:

@@ -101,7 +101,8 @@ def skel(mesh_path, capture_path, binding_path, analysis_path, output, *, max_in
     from ..skel.weights import FIT_METHODS, NEGATIVE_POLICIES, motion_gram
     from ..usd.skel_layer import skinned_points, write_skel_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"--mesh": mesh_path, "--capture": capture_path,
+                                            "--binding": binding_path, "--analysis": analysis_path})
     k = _parse_k(max_influences)
     if negative_weights not in NEGATIVE_POLICIES:
         raise OptionError(f"--negative-weights: expected one of {', '.join(NEGATIVE_POLICIES)}; got {negative_weights!r}")

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import InputError, MarkerError, OptionError, list_names
 from ..usd.layers import check_output_path, provenance
 
@@ -121,7 +122,8 @@ def muscles(mesh_path, output, *, layout=None, binding=None, from_rig=None, forc
     from ..tissue.rig import default_rig, face_landmarks, landmark_correspondence, warp_rig
     from ..usd.muscle_layer import read_rig_layer, write_rig_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"--mesh": mesh_path, "--layout": layout, "--binding": binding,
+                                            "--from-rig": from_rig})
     t0 = time.perf_counter()
     mesh, regions = _load_mesh(mesh_path)
     markers = _marker_positions(mesh, layout=layout, binding=binding)
@@ -213,7 +215,8 @@ def simulate(mesh_path, rig_path, output, *, expression=None, timeline=None, int
     from ..tissue.expressions import expression_timeline, read_timeline
     from ..usd.muscle_layer import read_rig_layer, write_tissue_animation_layer
 
-    out = check_output_path(output, suffixes=(".usdc", ".usd"))
+    out = check_output_path(output, suffixes=(".usdc", ".usd"),
+                            inputs={"--mesh": mesh_path, "--rig": rig_path, "--timeline": timeline})
     if (expression is None) == (timeline is None):
         raise OptionError("simulate: give exactly one of --expression NAME or --timeline T.json")
     t0 = time.perf_counter()
@@ -345,7 +348,9 @@ def fit_muscles(mesh_path, rig_path, capture_path, binding_path, output, *, step
     from ..usd.mesh_layer import read_binding
     from ..usd.muscle_layer import read_rig_layer, write_tissue_animation_layer
 
-    out = check_output_path(output, suffixes=(".usdc", ".usd"))
+    inputs = {"--mesh": mesh_path, "--rig": rig_path, "--capture": capture_path, "--binding": binding_path}
+    out = check_output_path(output, suffixes=(".usdc", ".usd"), inputs=inputs)
+    refuse_overwriting_inputs({"--report": report}, inputs)
     if int(step) < 1:
         raise OptionError(f"--step must be >= 1; got {step}")
     t0 = time.perf_counter()

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import InputError, OptionError, UsdFaceError
 
 log = logging.getLogger("usdface")
@@ -163,7 +164,10 @@ def track(video, output, *, seeds=None, auto: int | None = None, layout=None, me
     t0 = time.perf_counter()
     if (seeds is None) == (auto is None):
         raise OptionError("track: give exactly one of --seeds SEEDS.json or --auto N")
-    out = check_output_path(output)
+    inputs = {"video": video, "--seeds": seeds if not isinstance(seeds, dict) else None, "--layout": layout,
+              "--mesh": mesh}
+    out = check_output_path(output, inputs=inputs)
+    refuse_overwriting_inputs({"--csv": csv, "--preview": preview}, inputs)
     csv_path = _check_csv_output(csv) if csv else None
     png_path = check_image_output(preview, suffixes=(".png",), option="--preview") if preview else None
     r = check_radius_range(radius)

@@ -173,7 +173,8 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
     from ..capture.retarget import marker_displacements, mesh_head_motion
     from ..usd.analysis_layer import write_animation_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"--mesh": mesh_path, "--capture": capture_path,
+                                            "--binding": binding_path, "--analysis": analysis_path})
     mesh, capture, binding, dm = load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path,
                                                       method=method)
     disp = marker_displacements(capture, binding.names, binding.displacement_transform())

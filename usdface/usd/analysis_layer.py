@@ -225,14 +225,21 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
 
 
 def write_shot_stage(path, *, layers: list, rate: float, start: float, end: float, units,
-                     default_prim: str = "Face", stabilized_capture: bool = False) -> str:
+                     default_prim: str = "Face", stabilized_capture: bool = False, record: dict | None = None) -> str:
     """A small .usda composing the given layers (strongest first) with relative asset paths.
 
     With ``stabilized_capture`` the markers are shown head-stabilised (the capture's head-motion op
     is dropped from /Capture's op order), so they stay on the stabilised face animation.
+    ``record`` (usdface.shot_commit.shot_record: the run id, every file's sha256 and provenance id)
+    goes into ``customLayerData["usdface"]["shot"]`` as JSON, for ``usdface check``.
     """
     with output_layer(path) as stage:
         root = stage.GetRootLayer()
+        if record is not None:
+            from .. import __version__
+
+            set_provenance(stage, {"usdfaceVersion": __version__, "processor": "run",
+                                   "shot": json.dumps(record, sort_keys=True)})
         for layer in layers:
             root.subLayerPaths.append(relative_asset_path(layer, path))
         set_stage_metadata(stage, units=units, default_prim=default_prim, rate=rate, start=start, end=end)

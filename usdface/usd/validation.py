@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from pxr import Usd, UsdGeom, UsdValidation
@@ -241,8 +242,47 @@ def _is_image_track_layer(stage: Usd.Stage) -> bool:
     return bool(sets) and all(p.GetAttribute("usdface:markerSet:dimensions").Get() == 2 for p in sets)
 
 
+SHOT_RULE = "usdface:ShotIntegrity"
+
+
+def check_shot_integrity(path: str | os.PathLike) -> list[Finding]:
+    """A shot stage written by `usdface run` against the files beside it: every file it lists
+    present, with the sha256 and provenance id it was committed with (no mix of two runs, nothing
+    missing); a shot stage missing because a commit was interrupted is an error too."""
+    from ..shot_commit import interrupted_commit, read_shot_record, verify_shot
+
+    p = Path(path)
+    folder = p.parent
+    pending = interrupted_commit(folder) if folder.is_dir() else None
+    if not p.exists():
+        if pending is not None and p.name in pending.get("files", []):
+            return [Finding("error", SHOT_RULE, str(p),
+                            f"{p.name} is missing: a run (id {pending.get('runId')}) was stopped while committing "
+                            f"{folder} ({len(pending['pending'])} file(s) not yet in place); the next `usdface run` "
+                            "into this folder completes the commit (or run it again)")]
+        return []
+    findings = []
+    problems = verify_shot(p)
+    if problems:
+        run = (read_shot_record(p) or {}).get("runId")
+        findings.append(Finding("error", SHOT_RULE, str(p),
+                                f"mixed or incomplete shot (run {run}): {'; '.join(problems)}; run `usdface run` "
+                                f"into {folder} again to repair it"))
+    if pending is not None and read_shot_record(p) is not None:
+        findings.append(Finding("warning", SHOT_RULE, str(p),
+                                f"{folder} holds an interrupted commit of run {pending.get('runId')} "
+                                f"({pending['folder']}); the next `usdface run` into this folder completes it"))
+    return findings
+
+
 def check_layer(path: str | os.PathLike) -> list[Finding]:
-    """Run every UsdValidation validator (USD's and usdface's) on the stage opened from ``path``."""
+    """Run every UsdValidation validator (USD's and usdface's) on the stage opened from ``path``,
+    and, for a shot stage written by `usdface run`, :func:`check_shot_integrity`."""
+    from .layers import is_in_memory
+
+    integrity = [] if is_in_memory(path) else check_shot_integrity(path)  # shots are files
+    if any(f.severity == "error" and ("missing" in f.message) for f in integrity):
+        return integrity  # composing a shot with missing layers adds nothing but USD's warnings
     register_validators()
     stage = open_stage(path, what="file")
     validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
@@ -264,5 +304,6 @@ def check_layer(path: str | os.PathLike) -> list[Finding]:
             # 2D tracks are in pixels: no metric scale exists, and a made-up one would mislead
             severity, message = "warning", message + " (a 2D image-track layer: pixels have no metric scale)"
         findings.append(Finding(severity, error.GetIdentifier(), site, message))
+    findings += integrity
     findings.sort(key=lambda f: (f.severity != "error", f.rule, f.site))
     return findings
