@@ -35,6 +35,16 @@ class MeshError(InputError):
     """A mesh has no faces, degenerate faces, or topology usdface cannot use."""
 
 
+class PlausibilityError(InputError):
+    """Data that reads fine but cannot be what it claims (a marker 50 cm off the face, a capture in
+    metres declared cm...). The message names each finding and the ``--allow`` option that accepts
+    it (:mod:`usdface.capture.plausibility`)."""
+
+    def __init__(self, message: str, findings=()):
+        super().__init__(message)
+        self.findings = tuple(findings)
+
+
 class ComputeError(UsdFaceError):
     """A computation cannot give a meaningful result (singular system, infinite distances...)."""
 

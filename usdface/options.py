@@ -29,8 +29,8 @@ from .errors import OptionError
 from .units import METERS_PER_UNIT
 
 __all__ = [
-    "CaptureOptions", "BindOptions", "DistanceOptions", "TransferOptions", "SkelOptions", "VideoOptions",
-    "SolveOptions", "RunOptions", "PlayblastOptions", "OUTPUT_KINDS", "option_fields", "flag_of",
+    "PlausibilityOptions", "CaptureOptions", "BindOptions", "DistanceOptions", "TransferOptions", "SkelOptions",
+    "VideoOptions", "SolveOptions", "RunOptions", "PlayblastOptions", "OUTPUT_KINDS", "option_fields", "flag_of",
 ]
 
 UNITS = tuple(METERS_PER_UNIT)
@@ -234,6 +234,17 @@ def _max_influences(value, flag):
     return n
 
 
+def _allow(value, flag):
+    """Plausibility check codes, as a list or comma-separated text (usdface.capture.plausibility)."""
+    from .capture.plausibility import parse_allow
+
+    if value is None:
+        return ()
+    if isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value) or isinstance(value, str):
+        return tuple(sorted(parse_allow(value)))
+    raise OptionError(f"{flag} {_show(value)}: expected plausibility check names")
+
+
 def _path(value, flag):
     if not isinstance(value, (str, Path)):
         raise OptionError(f"{flag} {_show(value)}: expected a file path")
@@ -260,8 +271,9 @@ def option(default, *, flag: str, help: str, coerce: Callable | None = None, gro
 
 
 #: order of the option groups in `--help`
-GROUP_ORDER = ("mesh", "capture reading and conditioning", "binding", "video capture", "distances", "transfer",
-               "deliverables", "skeleton", "blend-shape solve", "curves", "frames", "look", "side by side", "encoding")
+GROUP_ORDER = ("mesh", "capture reading and conditioning", "plausibility checks", "binding", "video capture",
+               "distances", "transfer", "deliverables", "skeleton", "blend-shape solve", "curves", "frames", "look",
+               "side by side", "encoding")
 
 
 def option_fields(cls) -> list:
@@ -335,7 +347,18 @@ class _Options:
 # -- the groups ------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class CaptureOptions(_Options):
+class PlausibilityOptions(_Options):
+    """Which plausibility findings to accept (`import-capture`, `bind`, `lift`, `run`); see
+    :mod:`usdface.capture.plausibility` for the checks."""
+
+    allow: tuple = option((), flag="--allow", coerce=_allow, nargs="+", metavar="CHECK", group="plausibility checks",
+                          help="accept these findings: an error becomes a warning, a warning is silenced; checks: "
+                               "zeros, outliers, far-markers, mixed-units, face-size, speed, stabilize, "
+                               "layout-distance, fit-residual, unit-scale (the README's table)")
+
+
+@dataclass(frozen=True)
+class CaptureOptions(PlausibilityOptions):
     """Reading and conditioning a capture (`import-capture`, `run`)."""
 
     units: str | None = option(None, flag="--units", choices=UNITS, group="capture reading and conditioning",
@@ -366,10 +389,14 @@ class CaptureOptions(_Options):
     neutral: Any = option(None, flag="--neutral", coerce=_neutral, metavar="FRAME|auto",
                           group="capture reading and conditioning",
                           help="neutral frame (0-based index after trimming) or 'auto' (default: the first frame)")
+    keep_zeros: bool = option(False, flag="--keep-zeros", coerce=_flag, group="plausibility checks",
+                              help="C3D: keep samples at exactly (0, 0, 0) as positions (default: they are gaps)")
+    drop_outliers: bool = option(False, flag="--drop-outliers", coerce=_flag, group="plausibility checks",
+                                 help="make outlier samples gaps instead of stopping (fill them with --fill-gaps N)")
 
 
 @dataclass(frozen=True)
-class BindOptions(_Options):
+class BindOptions(PlausibilityOptions):
     """Binding markers to the surface (`bind`, `run`)."""
 
     retarget: str = option("displacement", flag="--retarget", choices=("displacement", "similarity"),

@@ -1,12 +1,15 @@
 """`usdface import-mesh`: a mesh file (OBJ/PLY/STL/OFF or USD) -> mesh layer with hole regions."""
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
 
 from ..mesh.model import FaceMesh
 from ..usd.layers import USD_SUFFIXES, check_output_path, provenance
+
+log = logging.getLogger("usdface")
 
 
 def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
@@ -39,7 +42,7 @@ def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
 
 def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
     """Import a mesh, find its holes (outer border, mouth, eyes) as regions, write the mesh layer."""
-    from ..mesh.topology import find_hole_regions, mesh_topology
+    from ..mesh.topology import subset_faces, border_surface, boundary_loops, find_hole_regions, mesh_topology
     from ..usd.mesh_layer import write_mesh_layer
 
     out = check_output_path(output, inputs={"input": input})
@@ -49,8 +52,12 @@ def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
         p = mesh.points
         mesh = mesh.with_points(np.stack([p[:, 0], p[:, 2], -p[:, 1]], axis=1))
     topo = mesh_topology(mesh)
+    surface = border_surface(mesh)
+    if not surface.clean:
+        # the run goes on: the border and holes come from the rest of the surface
+        log.warning("%s", surface.message(str(input)))
     if not regions:
-        regions = find_hole_regions(mesh)
+        regions = find_hole_regions(mesh, loops=boundary_loops(subset_faces(mesh, surface.faces)))
     prov = provenance("import-mesh", options={"units": units, "up_axis": up_axis}, inputs={"mesh": input})
     write_mesh_layer(out, mesh, regions, prov=prov)
     sizes = {int(k): int(v) for k, v in zip(*np.unique(mesh.face_vertex_counts, return_counts=True))}
@@ -58,7 +65,7 @@ def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
         "output": str(out), "source": str(input), "points": mesh.n_points, "faces": mesh.n_faces,
         "faceSizes": sizes, "units": mesh.units, "uvs": mesh.uvs is not None,
         "boundaryLoops": topo["boundary_loops"], "components": topo["components"],
-        "nonManifoldEdges": topo["non_manifold_edges"],
+        "nonManifoldEdges": topo["non_manifold_edges"], "borderSurface": surface.summary(),
         "regions": {r.name: {"role": r.role, "vertices": int(r.indices.size)} for r in regions},
     }
     summary["_text"] = [

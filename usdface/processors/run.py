@@ -159,7 +159,7 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
                                    mesh=mesh, radius=tuple(o.radius), rate=o.rate)
             lifted = work / "lifted.usdc"
             steps["lift"] = lift(f["tracks.usdc"], f["mesh.usdc"], lifted, layout=o.layout,
-                                 neutral=None if o.neutral == "auto" else o.neutral)
+                                 neutral=None if o.neutral == "auto" else o.neutral, allow=o.allow)
             # the lifted capture still holds the head's motion in the image: condition it like any take
             # (its units, rate and neutral come from the tracks)
             for key in ("units", "rate", "up_axis", "neutral"):
@@ -168,7 +168,7 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
         else:
             steps["import-capture"] = import_capture(capture, f["capture.usdc"], cache=cache, **capture_kw)
         steps["bind"] = bind(f["mesh.usdc"], f["capture.usdc"], f["binding.usda"], layout=o.layout,
-                             auto=bool(o.auto) and not video, retarget=o.retarget)
+                             auto=bool(o.auto) and not video, retarget=o.retarget, allow=o.allow)
         steps["distances"] = distances(f["mesh.usdc"], f["binding.usda"], f["analysis.usdc"], method=o.method,
                                        backend=o.backend, region_radius_cm=o.region_radius, sigma_cm=o.sigma,
                                        threshold=o.threshold, pin_border=o.pin_border, components=o.components,

@@ -191,6 +191,7 @@ def solve(mesh, capture, output, *, shapes=None, layout=None, auto=False, csv=No
           livelink_fill_zeros=False, corrective=None, fps=None, key_tolerance=None, head_motion=True,
           retarget="displacement", mesh_units=None, units=None, rate=None, up_axis=None, stabilize="auto",
           fill_gaps=None, filter=None, cutoff=8.0, trim=None, neutral=None, resample=None, start_frame=None,
+          allow=(), keep_zeros=False, drop_outliers=False,
           **solver_options) -> dict:
     """Solve a capture on a rig; write CURVES.usdc and the optional CSVs and corrective shot.
 
@@ -244,10 +245,15 @@ def solve(mesh, capture, output, *, shapes=None, layout=None, auto=False, csv=No
         from ..blendshape.csvio import check_arkit_names
 
         check_arkit_names(rig.names, fill_missing=livelink_fill_zeros, source=f"the rig {rig.source}")
-    cap = load_capture(capture, units=units, rate=rate, up_axis=up_axis)
+    cap = load_capture(capture, units=units, rate=rate, up_axis=up_axis, keep_zeros=keep_zeros)
     cap, reports = condition_capture(cap, trim=trim, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff,
-                                     resample=resample, neutral=neutral, stabilize=stabilize, start_frame=start_frame)
-    binding = _bind(rig.mesh, cap, layout=layout, auto=auto, retarget=retarget)
+                                     resample=resample, neutral=neutral, stabilize=stabilize, start_frame=start_frame,
+                                     allow=allow, drop_outliers=drop_outliers)
+    from .bind import bind_and_judge
+
+    # judged as `bind` judges a binding (face size, layout distance, fit residual, unit scale)
+    binding, _, _ = bind_and_judge(rig.mesh, cap, layout=layout, retarget=retarget, allow=allow,
+                                   mesh_name=f"mesh {mesh}", capture_name=f"capture {capture}")
     take = solve_take(rig, cap, binding, head_motion=head_motion, **opts)
     curves = deliverable_curves(rig.names, take.weights, rate=take.rate, fps=fps, key_tolerance=key_tolerance,
                                 head_motion=take.head_motion)
@@ -287,15 +293,6 @@ def solve(mesh, capture, output, *, shapes=None, layout=None, auto=False, csv=No
     summary["seconds"] = round(time.perf_counter() - t0, 3)
     summary["_text"] = _text(summary, outs)
     return summary
-
-
-def _bind(mesh, capture, *, layout, auto, retarget):
-    from ..mesh.binding import bind_auto, bind_layout
-    from ..mesh.layout import read_layout
-
-    if layout is not None:
-        return bind_layout(mesh, read_layout(layout), capture, retarget=retarget)
-    return bind_auto(mesh, capture, retarget=retarget)
 
 
 def _summary(take, curves, rig, binding, outs, reports) -> dict:
@@ -504,7 +501,8 @@ def solve_shot(mesh_path, capture_path, binding_path, out_dir, *, shapes=None, m
 
 #: options of `usdface run` that `solve` takes too (capture conditioning, binding, head motion)
 _RUN_OPTIONS = ("units", "rate", "up_axis", "stabilize", "fill_gaps", "filter", "cutoff", "trim", "start_frame",
-                "resample", "neutral", "retarget", "layout", "auto", "mesh_units", "head_motion")
+                "resample", "neutral", "allow", "keep_zeros", "drop_outliers", "retarget", "layout", "auto",
+                "mesh_units", "head_motion")
 
 
 def register_cli(sub) -> None:
