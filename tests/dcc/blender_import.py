@@ -51,6 +51,14 @@ def attributes(obj, depsgraph) -> list[dict]:
     return out
 
 
+def _animated_paths(keys) -> int:
+    """How many shape-key values have animation curves."""
+    action = keys.animation_data.action if keys is not None and keys.animation_data else None
+    if action is None:
+        return 0
+    return len({fc.data_path for fc in action.fcurves if fc.data_path.startswith("key_blocks")})
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("input")
@@ -73,11 +81,16 @@ def main(argv=None) -> int:
     meshes = [o for o in scene.objects if o.type == "MESH"]
     arrays = {}
     for i, obj in enumerate(meshes):
-        frames = []
+        frames, key_values = [], []
+        keys = obj.data.shape_keys
         for f in args.frames:
             scene.frame_set(f)
             frames.append(evaluated_points(obj, bpy.context.evaluated_depsgraph_get()))
+            if keys is not None:
+                key_values.append([k.value for k in keys.key_blocks])
         arrays[f"points_{i}"] = np.stack(frames) if frames else np.zeros((0, 0, 3))
+        if keys is not None:  # shape keys (Basis first) and their values at each frame
+            arrays[f"shape_keys_{i}"] = np.asarray(key_values, dtype=np.float64)
     # the rest pose: every armature in its rest position, at the first frame asked for
     armatures = [o for o in scene.objects if o.type == "ARMATURE"]
     for arm in armatures:
@@ -86,7 +99,9 @@ def main(argv=None) -> int:
     depsgraph = bpy.context.evaluated_depsgraph_get()
     for i, obj in enumerate(meshes):
         arrays[f"rest_{i}"] = evaluated_points(obj, depsgraph)
-    info["meshes"] = [{"name": o.name, "vertices": len(o.data.vertices), "attributes": attributes(o, depsgraph)}
+    info["meshes"] = [{"name": o.name, "vertices": len(o.data.vertices), "attributes": attributes(o, depsgraph),
+                       "shapeKeys": [k.name for k in o.data.shape_keys.key_blocks] if o.data.shape_keys else [],
+                       "animatedShapeKeys": _animated_paths(o.data.shape_keys)}
                       for o in meshes]
     info["frames"] = list(args.frames)
     np.savez_compressed(args.output, info=np.array(json.dumps(info)), **arrays)

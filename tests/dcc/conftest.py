@@ -65,6 +65,8 @@ class BlenderImport:
             self.info = json.loads(str(z["info"]))
             self.points = [z[f"points_{i}"] for i in range(len(self.info["meshes"]))]
             self.rest = [z[f"rest_{i}"] for i in range(len(self.info["meshes"]))]
+            self.shape_keys = [z[f"shape_keys_{i}"] if f"shape_keys_{i}" in z.files else None
+                               for i in range(len(self.info["meshes"]))]
 
     def mesh_with(self, n_points: int) -> int | None:
         """Index of the one imported mesh with ``n_points`` vertices (None if there is none)."""
@@ -79,11 +81,13 @@ class BlenderImport:
 
 @pytest.fixture(scope="session")
 def jaw_outputs(tmp_path_factory, sample_assets):
-    """`usdface run --output-kind both` on the Jaw take and the MakeHuman face (first 300 frames)."""
+    """`usdface run --output-kind all` on the Jaw take and the MakeHuman face with its 52-shape rig
+    (first 300 frames): points, skeleton and blend-shape deliverables of one run."""
     out = tmp_path_factory.mktemp("dcc_jaw")
     code = main(["run", "--mesh", str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj"),
                  "--capture", str(sample_assets / "capture" / "JawMoCap.ma"),
                  "--layout", str(sample_assets / "layouts" / "makehuman_hm08_face.layout.json"),
-                 "--output-kind", "both", "--trim", "0", "300", "-o", str(out), "-q"])
+                 "--shapes", str(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz"),
+                 "--output-kind", "all", "--trim", "0", "300", "-o", str(out), "-q"])
     assert code == 0
     return out

@@ -108,7 +108,27 @@ def test_skeleton_layer_alone_imports_the_animated_mesh(blender, jaw_outputs, re
     assert moved > 0.5  # cm: the mesh is animated, not a still rest pose
 
 
-@pytest.mark.parametrize("name", ["shot.usda", "shot_skel.usda"])
+def test_blend_shape_layer_alone_imports_as_animated_shape_keys(blender, jaw_outputs, reference, tmp_path):
+    """blendshapes.usdc alone: the mesh with its 52 shapes as shape keys whose values are animated,
+    and Blender's evaluated mesh equal to usdface's own reconstruction (the shared evaluator:
+    UsdSkel blend shapes and the head motion on /Face) within 0.01 cm (issue 11)."""
+    layer = jaw_outputs / "blendshapes.usdc"
+    ours = FaceEvaluator.open(layer)
+    frames = reference["frames"]
+    expected = ours.points_range([float(f) for f in frames])
+    result = blender(layer, frames, workdir=tmp_path)
+    i = _imported_mesh(result, reference["n_points"], layer.name)
+    mesh = result.info["meshes"][i]
+    assert len(mesh["shapeKeys"]) == 53 and mesh["shapeKeys"][0] == "Basis"  # Basis + the rig's 52 shapes
+    assert mesh["animatedShapeKeys"] >= 40  # every solved shape has a curve (eyeLook*, tongueOut held at 0)
+    values = result.shape_keys[i]
+    assert values is not None and np.ptp(values[:, 1:], axis=0).max() > 0.5  # jawOpen moves across the frames
+    err = np.linalg.norm(to_usd_world(result.points[i], layer) - expected, axis=2).max(axis=1)
+    print(f"Blender blendshapes.usdc alone vs usdface's evaluation (cm) at {frames}: {np.round(err, 6).tolist()}")
+    assert err.max() <= POINTS_TOL
+
+
+@pytest.mark.parametrize("name", ["shot.usda", "shot_skel.usda", "shot_blendshapes.usda"])
 def test_usdface_attributes_carry_one_value_per_point(blender, jaw_outputs, reference, tmp_path, name):
     """No usdface primvar reaches Blender as a junk per-point attribute: every imported usdface
     attribute comes from a primvar with one value per point and holds that primvar's values."""

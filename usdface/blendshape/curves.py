@@ -7,7 +7,7 @@ them at the scene's rate and with few keys:
   interpolates linearly between solved frames (the solved curves are already smooth: the solver
   low-passes them at a few Hz, far below the Nyquist rate of 24 fps). Linear interpolation of
   values in [0, 1] stays in [0, 1]. Head motion is resampled with it (:func:`resample_rigid`:
-  translation linearly, rotation by quaternion slerp).
+  translation linearly, rotation by slerp).
 - :func:`reduce_keys` keeps, per curve, the fewest keys a greedy left-to-right scan needs so that
   linear interpolation between kept keys stays within ``tolerance`` of every frame (the "sleeve"
   test: the slope from the last key must stay inside the cone of every frame passed since). Keys
@@ -54,45 +54,21 @@ def resample_curves(values, rate: float, new_rate: float) -> np.ndarray:
     return (1.0 - t) * v[i0] + t * v[i1]
 
 
-def _quat_from_matrix(r: np.ndarray) -> np.ndarray:
-    """(F, 4) unit quaternions (w, x, y, z) of rotation matrices (F, 3, 3), w >= 0."""
-    from ..skel.joints import rotation_to_quaternion
-
-    return rotation_to_quaternion(r).reshape(-1, 4)
-
-
-def _matrix_from_quat(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-    ], axis=1)
-
-
 def interpolate_rigid(times, matrices, new_times) -> np.ndarray:
     """Rigid motions (T, 4, 4) given at increasing ``times``, at ``new_times`` (clamped to the ends):
-    translation linearly, rotation by quaternion slerp."""
+    translation linearly, rotation by spherical linear interpolation (scipy's Slerp)."""
+    from scipy.spatial.transform import Rotation, Slerp
+
     m = np.asarray(matrices, dtype=np.float64)
     t_in = np.asarray(times, dtype=np.float64)
-    pos = np.interp(np.asarray(new_times, dtype=np.float64), t_in, np.arange(t_in.size, dtype=np.float64))
-    i0 = np.minimum(np.floor(pos).astype(np.int64), m.shape[0] - 1)
-    i1 = np.minimum(i0 + 1, m.shape[0] - 1)
-    t = pos - i0
-    q = _quat_from_matrix(m[:, :3, :3])
-    q0, q1 = q[i0], q[i1].copy()
-    dot = (q0 * q1).sum(axis=1)
-    q1[dot < 0] *= -1.0
-    theta = np.arccos(np.clip(np.abs(dot), -1.0, 1.0))
-    small = theta < 1e-8
-    s = np.where(small, 1.0, np.sin(theta))
-    a = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / s)
-    b = np.where(small, t, np.sin(t * theta) / s)
-    qt = a[:, None] * q0 + b[:, None] * q1
-    qt /= np.linalg.norm(qt, axis=1, keepdims=True)
-    out = np.tile(np.eye(4), (pos.size, 1, 1))
-    out[:, :3, :3] = _matrix_from_quat(qt)
-    out[:, :3, 3] = (1.0 - t)[:, None] * m[i0, :3, 3] + t[:, None] * m[i1, :3, 3]
+    t_new = np.clip(np.asarray(new_times, dtype=np.float64), t_in[0], t_in[-1])
+    out = np.tile(np.eye(4), (t_new.size, 1, 1))
+    if t_in.size == 1:
+        out[:] = m[0]
+        return out
+    out[:, :3, :3] = Slerp(t_in, Rotation.from_matrix(m[:, :3, :3]))(t_new).as_matrix()
+    for c in range(3):
+        out[:, c, 3] = np.interp(t_new, t_in, m[:, c, 3])
     return out
 
 
