@@ -122,7 +122,7 @@ def test_blend_shape_layer_alone_imports_as_animated_shape_keys(blender, jaw_out
     assert len(mesh["shapeKeys"]) == 53 and mesh["shapeKeys"][0] == "Basis"  # Basis + the rig's 52 shapes
     assert mesh["animatedShapeKeys"] >= 40  # every solved shape has a curve (eyeLook*, tongueOut held at 0)
     values = result.shape_keys[i]
-    assert values is not None and np.ptp(values[:, 1:], axis=0).max() > 0.5  # jawOpen moves across the frames
+    assert values is not None and np.ptp(values[:, 1:], axis=0).max() > 0.2  # the first jaw drop moves a key
     err = np.linalg.norm(to_usd_world(result.points[i], layer) - expected, axis=2).max(axis=1)
     print(f"Blender blendshapes.usdc alone vs usdface's evaluation (cm) at {frames}: {np.round(err, 6).tolist()}")
     assert err.max() <= POINTS_TOL
