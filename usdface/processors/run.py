@@ -259,10 +259,16 @@ def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cac
          if bs else []) + ([f"  video: {summary['steps']['track']['frames']} frames tracked, "
           f"{100 * summary['steps']['track']['validFraction']:.1f}% of marker samples found, lifted with depth "
           f"{summary['steps']['lift']['depth']}"] if video else []) \
-      + ([f"  skeleton: {summary['steps']['skel']['joints']} joints, "
-          f"{summary['steps']['skel']['maxInfluences']} influences per vertex"] if "skel" in summary["steps"] else []) \
+      + ([_skel_line(summary["steps"]["skel"])] if "skel" in summary["steps"] else []) \
       + [f"  total {summary['seconds']:.1f} s; files: {', '.join(files)}"]
     return summary
+
+
+def _skel_line(sk: dict) -> str:
+    err = sk.get("usdSkelPointCacheError")
+    return (f"  skeleton: {sk['joints']} joints, {sk['maxInfluences']} influences per vertex ({sk['skinWeights']} "
+            f"weights, {sk['correctiveShapes']} corrective shapes)"
+            + (f"; UsdSkel vs the point cache: max {err:.3g} {sk['units']}" if err is not None else ""))
 
 
 def _remove_created(created, out: Path) -> None:
