@@ -41,11 +41,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .errors import OptionError, UsdFaceError
-from .options import BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
+from .options import (BindOptions, CaptureOptions, DistanceOptions, PlayblastOptions, RunOptions, SkelOptions,
+                      SolveOptions, TransferOptions)
 
-__all__ = ["Result", "new_stage", "import_mesh", "import_capture", "bind", "distances", "transfer", "run",
-           "evaluator", "playblast", "report", "check",
-           "UsdFaceError", "CaptureOptions", "BindOptions", "DistanceOptions", "TransferOptions", "RunOptions"]
+__all__ = ["Result", "new_stage", "import_mesh", "import_capture", "bind", "distances", "transfer", "skel",
+           "solve", "run", "evaluator", "playblast", "report", "check", "UsdFaceError", "CaptureOptions",
+           "BindOptions", "DistanceOptions", "TransferOptions", "SkelOptions", "SolveOptions", "RunOptions",
+           "PlayblastOptions"]
 
 
 @dataclass
@@ -147,6 +149,41 @@ def transfer(stage, options: TransferOptions | None = None, *, capture=None, bin
                                         stage if binding is None else binding,
                                         stage if analysis is None else analysis, target, method=method,
                                         head_motion=head_motion, **_options(options, TransferOptions).to_dict()))
+
+
+def skel(stage, options: SkelOptions | None = None, *, transfer_options: TransferOptions | None = None,
+         capture=None, binding=None, analysis=None, method: str | None = None, head_motion: bool = True,
+         into=None) -> Result:
+    """UsdSkel keyframes reproducing the transfer: a skeleton with a joint per marker, DCC-safe skin
+    weights (``options``: :class:`usdface.options.SkelOptions`), corrective shapes and the head
+    motion on the SkelRoot. ``capture``, ``binding`` and ``analysis`` default to ``stage``. The
+    UsdSkel check of the written layer (`usdface skel`'s) needs the mesh composed with it, so it
+    runs here only when ``into`` is a file path."""
+    from .processors.skel import skel as run_skel
+    from .usd.layers import is_in_memory
+
+    target = _into(into, "skel")
+    o = _options(options, SkelOptions)
+    return _result(target, run_skel(stage, stage if capture is None else capture, stage if binding is None else binding,
+                                    stage if analysis is None else analysis, target, method=method,
+                                    head_motion=head_motion, verify=not is_in_memory(target), **o.to_dict(),
+                                    **_options(transfer_options, TransferOptions).to_dict()))
+
+
+def solve(mesh, capture, output, options: RunOptions | dict | None = None, *, csv=None, livelink=None,
+          corrective=None) -> dict:
+    """Blend-shape weight curves on a rig, on files, exactly as `usdface solve` (``options``: the
+    capture, binding and solve fields of :class:`usdface.options.RunOptions`; ``mesh`` a USD mesh
+    with blend shapes, or a neutral with ``options.shapes``). Returns the summary."""
+    from .processors.solve import solve as run_solve
+
+    o = options if isinstance(options, RunOptions) else RunOptions() if options is None else \
+        RunOptions.from_mapping(options, what="solve options")
+    summary = run_solve(mesh, capture, output, shapes=o.shapes, layout=o.layout, auto=bool(o.auto), csv=csv,
+                        livelink=livelink, livelink_fill_zeros=o.livelink_fill_zeros, corrective=corrective,
+                        fps=o.fps, key_tolerance=o.key_tolerance, head_motion=o.head_motion, retarget=o.retarget,
+                        mesh_units=o.mesh_units, **o.group(CaptureOptions).to_dict(), **o.solver_kwargs())
+    return {k: v for k, v in summary.items() if not k.startswith("_")}
 
 
 def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cache=None) -> dict:

@@ -41,8 +41,9 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from ..errors import FormatError, InputError, MeshError, list_names
 from ..mesh.model import FaceMesh
-from .capture_layer import _matrix_from_usd, _matrix_to_usd
-from .layers import AtomicLayer, open_stage, set_provenance, set_stage_metadata, stage_units
+from .capture_layer import _matrix_from_usd
+from .layers import open_stage, output_layer, set_provenance, set_stage_metadata, stage_units
+from .motion import author_head_motion
 from .mesh_layer import author_mesh, author_regions, mesh_from_prim, read_regions
 
 __all__ = ["UsdRig", "read_blendshape_rig", "write_curves_layer", "evaluate_curves_layer", "read_curves_layer",
@@ -211,13 +212,11 @@ def write_curves_layer(path, *, mesh: FaceMesh, regions, names, deltas, times, w
     t = np.zeros(0) if static else np.asarray(times, dtype=np.float64)
     if w.shape != ((len(names),) if static else (t.size, len(names))):
         raise InputError(f"weights must have shape {(len(names),) if static else (t.size, len(names))}; got {w.shape}")
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         set_stage_metadata(stage, units=mesh.units, default_prim="Face", rate=rate, start=start, end=end)
         root = UsdSkel.Root.Define(stage, "/Face")
         if head_motion is not None:
-            op = UsdGeom.Xformable(root.GetPrim()).AddTransformOp()
-            for tc, m in zip(head_times, head_motion):
-                op.Set(_matrix_to_usd(m), Usd.TimeCode(float(tc)))
+            author_head_motion(stage, root.GetPath(), head_motion, times=head_times)
         geom = author_mesh(stage, mesh, "/Face/Geom")
         UsdGeom.Mesh(geom).CreateNormalsAttr().Block()  # shapes move the points: no stale normals
         author_regions(geom.GetPrim(), regions or [])
@@ -355,13 +354,11 @@ def write_points_layer(path, *, mesh: FaceMesh, regions, points, rate: float, st
     points (e.g. the rig's pose plus a corrective), time codes ``start + frame``."""
     pts = np.asarray(points, dtype=np.float32)
     n = pts.shape[0]
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         set_stage_metadata(stage, units=mesh.units, default_prim="Face", rate=rate, start=start, end=start + n - 1)
         root = UsdGeom.Xform.Define(stage, "/Face")
         if head_motion is not None:
-            op = root.AddTransformOp()
-            for f, m in enumerate(head_motion):
-                op.Set(_matrix_to_usd(m), Usd.TimeCode(float(start + f)))
+            author_head_motion(stage, root.GetPath(), head_motion, start=start)
         geom = author_mesh(stage, mesh, "/Face/Geom")
         geom.CreateNormalsAttr().Block()
         author_regions(geom.GetPrim(), regions or [])

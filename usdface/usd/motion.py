@@ -23,25 +23,35 @@ def _to_usd(m: np.ndarray) -> Gf.Matrix4d:
     return Gf.Matrix4d(*np.asarray(m, dtype=np.float64).T.ravel().tolist())
 
 
-def author_head_motion(stage: Usd.Stage, root_path: Sdf.Path | str, motion: np.ndarray, *, start: float) -> None:
+def author_head_motion(stage: Usd.Stage, root_path: Sdf.Path | str, motion: np.ndarray, *, start: float = 0.0,
+                       times=None) -> None:
     """Author ``motion`` as the time-sampled ``xformOp:transform`` of ``root_path`` (an over if the
-    prim is defined elsewhere).
+    prim is defined elsewhere). When the composed prim already has transform ops (a mesh layer that
+    places the face), the head motion is appended after them as ``xformOp:transform:headMotion``,
+    so it moves the face in its own space.
 
     Parameters
     ----------
     motion : ndarray (F, 4, 4)
-        Column-vector rigid transforms in mesh space, mesh units; frame f is time code start + f.
+        Column-vector rigid transforms in mesh space, mesh units.
+    start, times :
+        Time code of each frame: ``times`` (F,) when given, else ``start + f``.
     """
     motion = np.asarray(motion, dtype=np.float64)
     if motion.ndim != 3 or motion.shape[1:] != (4, 4) or not np.isfinite(motion).all():
         raise InputError(f"head motion: expected finite (F, 4, 4) transforms; got {motion.shape}")
+    codes = start + np.arange(len(motion), dtype=np.float64) if times is None else np.asarray(times, dtype=float)
+    if codes.shape != (len(motion),):
+        raise InputError(f"head motion: {len(motion)} transforms for {codes.size} time codes")
     prim = stage.GetPrimAtPath(root_path) or stage.OverridePrim(root_path)
     xf = UsdGeom.Xformable(prim)
-    op = xf.MakeMatrixXform()
+    existing = xf.GetOrderedXformOps()
+    op = xf.AddTransformOp(opSuffix="headMotion") if existing else xf.AddTransformOp()
     attr = op.GetAttr()
     attr.SetDocumentation(HEAD_MOTION_DOC)
-    for f, m in enumerate(motion):
-        attr.Set(_to_usd(m), Usd.TimeCode(start + f))
+    with Sdf.ChangeBlock():
+        for t, m in zip(codes, motion):
+            attr.Set(_to_usd(m), Usd.TimeCode(float(t)))
 
 
 def read_head_motion(stage: Usd.Stage, root_path: Sdf.Path | str, times) -> np.ndarray | None:

@@ -36,7 +36,8 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from ..errors import InputError
-from .layers import AtomicLayer, open_stage, relative_asset_path, set_provenance, set_stage_metadata
+from .layers import add_sublayer, open_stage, output_layer, set_provenance, set_stage_metadata
+from .motion import author_head_motion
 from .mesh_layer import find_mesh
 
 SKELETON_NAME = "Skeleton"
@@ -105,7 +106,6 @@ def write_skel_layer(path, rig, weights, *, mesh_path, units, rate: float, start
     if root_path == mesh_path_in_stage:
         raise InputError(f"mesh {mesh_path}: the mesh {mesh_path_in_stage} is a root prim; a SkelRoot must be its "
                          "ancestor (put the mesh under a root Xform, as `usdface import-mesh` does)")
-    root_ops = UsdGeom.Xformable(mesh_stage.GetPrimAtPath(root_path)).GetOrderedXformOps()
     n_points = len(UsdGeom.Mesh(mesh_prim).GetPointsAttr().Get() or [])
     if weights.indices.shape[0] != n_points:
         raise InputError(f"skin weights for {weights.indices.shape[0]} vertices, mesh {mesh_path} has {n_points}")
@@ -117,17 +117,13 @@ def write_skel_layer(path, rig, weights, *, mesh_path, units, rate: float, start
                          f"{n_points} points and {n_frames} frames")
     if head_motion is not None and np.shape(head_motion) != (n_frames, 4, 4):
         raise InputError(f"head motion {np.shape(head_motion)} for {n_frames} frames")
-    with AtomicLayer(path) as stage:
-        stage.GetRootLayer().subLayerPaths.append(relative_asset_path(mesh_path, path))
+    with output_layer(path) as stage:
+        add_sublayer(stage, mesh_path, path)
         set_stage_metadata(stage, units=units, default_prim=root_path.name, rate=rate, start=start,
                            end=start + n_frames - 1)
-        root = UsdSkel.Root.Define(stage, root_path)
+        UsdSkel.Root.Define(stage, root_path)
         if head_motion is not None:
-            # after any transform the mesh layer gives /Face, so the head moves the mesh in its own space
-            op = UsdGeom.Xformable(root).AddTransformOp(opSuffix="headMotion" if root_ops else "")
-            with Sdf.ChangeBlock():
-                for f in range(n_frames):
-                    op.Set(_matrix(head_motion[f]), Usd.TimeCode(start + f))
+            author_head_motion(stage, root_path, head_motion, start=start)
         skel = UsdSkel.Skeleton.Define(stage, root_path.AppendChild(SKELETON_NAME))
         joints = Vt.TokenArray(list(rig.joint_paths))
         skel.CreateJointsAttr(joints)

@@ -220,6 +220,12 @@ def register_validators() -> None:
     if _registered:
         return
     reg = UsdValidation.ValidationRegistry()
+    if not hasattr(reg, "RegisterPrimValidator"):  # UsdValidation's Python registration came in USD 25.05
+        from ..errors import DependencyError
+
+        raise DependencyError(f"usdface check needs USD 25.05 or newer (UsdValidation with Python validators); this "
+                              f"USD is {Usd.GetVersion()[1]}.{Usd.GetVersion()[2]:02d} (Blender 4.5 ships 25.02): check the "
+                              "layers with usd-core (pip install usd-core)")
     for name, schema_type, fn, doc in _RULES:
         if reg.HasValidator(name):
             continue
