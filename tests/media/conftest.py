@@ -10,20 +10,10 @@ import tempfile
 import numpy as np
 import pytest
 
-from usdface.cli import main
-
-
-def run_cli(*args) -> int:
-    return main([str(a) for a in args])
 
 
 @pytest.fixture(scope="session")
-def cli():
-    return run_cli
-
-
-@pytest.fixture(scope="session")
-def shots(tmp_path_factory, sample_assets):
+def shots(tmp_path_factory, sample_assets, cli):
     """The README's main job (hybrid, points and skeleton), a Euclidean run of its first 240 frames,
     and a take with gaps filled by --fill-gaps (trimmed to 300 frames)."""
     from usdface.usd.capture_layer import read_capture_layer, write_capture_layer
@@ -33,12 +23,12 @@ def shots(tmp_path_factory, sample_assets):
     layout = sample_assets / "layouts" / "makehuman_hm08_face.layout.json"
     take = sample_assets / "capture" / "JawMoCap.ma"
     out = {"dir": d, "hybrid": d / "jaw", "euclidean": d / "jaw_euc", "gaps": d / "jaw_gaps"}
-    assert run_cli("run", "--mesh", mesh, "--capture", take, "--layout", layout, "--output-kind", "both",
+    assert cli("run", "--mesh", mesh, "--capture", take, "--layout", layout, "--output-kind", "both",
                    "-o", out["hybrid"], "-q") == 0
-    assert run_cli("run", "--mesh", mesh, "--capture", take, "--layout", layout, "--method", "euclidean",
+    assert cli("run", "--mesh", mesh, "--capture", take, "--layout", layout, "--method", "euclidean",
                    "--trim", 0, 240, "-o", out["euclidean"], "-q") == 0
     raw = d / "raw.usdc"
-    assert run_cli("import-capture", take, "-o", raw, "--trim", 0, 300, "-q") == 0
+    assert cli("import-capture", take, "-o", raw, "--trim", 0, 300, "-q") == 0
     cap = read_capture_layer(raw)
     pos = cap.positions.copy()
     pos[100:106, cap.index("Chin")] = np.nan          # filled (6 <= 8)
@@ -46,18 +36,18 @@ def shots(tmp_path_factory, sample_assets):
     pos[200:230, cap.index("NoseTop")] = np.nan       # too long: stays invalid
     gappy = d / "gappy.usdc"
     write_capture_layer(gappy, cap.replace(positions=pos), prov={"processor": "test"})
-    assert run_cli("run", "--mesh", mesh, "--capture", gappy, "--layout", layout, "--fill-gaps", 8,
+    assert cli("run", "--mesh", mesh, "--capture", gappy, "--layout", layout, "--fill-gaps", 8,
                    "-o", out["gaps"], "-q") == 0
     return out
 
 
 @pytest.fixture(scope="session")
-def video_shot(tmp_path_factory, sample_assets):
+def video_shot(tmp_path_factory, sample_assets, cli):
     """The painted-dots clip tracked, lifted and transferred, trimmed to source frames 10..59."""
     d = tmp_path_factory.mktemp("media_video")
     out = d / "video"
     v = sample_assets / "video"
-    assert run_cli("run", "--mesh", sample_assets / "meshes" / "makehuman_hm08_face_cm.obj", "--capture",
+    assert cli("run", "--mesh", sample_assets / "meshes" / "makehuman_hm08_face_cm.obj", "--capture",
                    v / "animface_dots.mp4", "--seeds", v / "animface_dots.seeds.json", "--layout",
                    sample_assets / "layouts" / "makehuman_hm08_face.layout.json", "--trim", 10, 60, "-o", out,
                    "-q") == 0

@@ -14,20 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usdface.cli import main
 
 #: frames of the Jaw take the CSV cases keep (0..599: neutral, small drop, wide open)
 FRAMES = 600
 CHIN_KEY = 412  # a key (= frame, keys fall on the 60 Hz grid) inside the wide-open hold
-
-
-def run_cli(*args) -> int:
-    return main([str(a) for a in args])
-
-
-@pytest.fixture(scope="session")
-def cli():
-    return run_cli
 
 
 @pytest.fixture(scope="session")

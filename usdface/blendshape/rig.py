@@ -208,15 +208,16 @@ def check_neutral(neutral, mesh: FaceMesh, *, source: str, tolerance: float = NE
     return float(dev[worst])
 
 
-def load_npz_rig(path, mesh: FaceMesh) -> BlendShapeRig:
-    """Read an ``.npz`` rig (``names[K]``, ``deltas[K, N, 3]``, optional ``neutral[N, 3]``) over ``mesh``.
+def read_shapes_npz(path, *, check: bool = True) -> tuple[list[str], np.ndarray | None, np.ndarray]:
+    """Read an ``.npz`` of shapes: ``names`` (K,) str, ``deltas`` (K, N, 3) float (vertex offsets
+    in the mesh's units), ``neutral`` (N, 3) optional. With ``check``, the deltas' shape and
+    finiteness are checked here (a rig checks them, with the shape named, when it is built).
 
-    Parameters
-    ----------
-    path : str or os.PathLike
-    mesh : FaceMesh
-        The neutral mesh; offsets are in its units. A stored ``neutral`` must match its points
-        (:func:`check_neutral`).
+    Returns
+    -------
+    names : list of str
+    neutral : ndarray (N, 3) float64 or None
+    deltas : ndarray (K, N, 3) float64
     """
     p = Path(os.fspath(path))
     if not p.is_file():
@@ -232,6 +233,26 @@ def load_npz_rig(path, mesh: FaceMesh) -> BlendShapeRig:
             neutral = np.asarray(z["neutral"], dtype=np.float64) if "neutral" in keys else None
     except (OSError, ValueError) as exc:
         raise FormatError(f"shapes file {p} is not a readable .npz: {exc}") from None
+    if check:
+        if deltas.ndim != 3 or deltas.shape[0] != len(names) or deltas.shape[2] != 3:
+            raise FormatError(f"shapes file {p}: deltas must have shape ({len(names)}, N, 3); got {deltas.shape}")
+        if not np.isfinite(deltas).all():
+            raise FormatError(f"shapes file {p}: deltas contain NaN or infinite values")
+    return names, neutral, deltas
+
+
+def load_npz_rig(path, mesh: FaceMesh) -> BlendShapeRig:
+    """Read an ``.npz`` rig (``names[K]``, ``deltas[K, N, 3]``, optional ``neutral[N, 3]``) over ``mesh``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    mesh : FaceMesh
+        The neutral mesh; offsets are in its units. A stored ``neutral`` must match its points
+        (:func:`check_neutral`).
+    """
+    p = Path(os.fspath(path))
+    names, neutral, deltas = read_shapes_npz(p, check=False)  # the rig checks names and values itself
     if deltas.ndim == 3 and deltas.shape[1] != mesh.n_points and deltas.shape[0] == len(names):
         raise MeshError(f"shapes file {p}: offsets for {deltas.shape[1]} vertices, the mesh "
                         f"{mesh.source or mesh.name} has {mesh.n_points} (another topology)")

@@ -2,12 +2,11 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, OptionError, ResourceError
+from ..errors import InputError, OptionError
 from ._common import _cv2
 
 
@@ -74,38 +73,13 @@ def write_png(path, image: np.ndarray) -> Path:
     if path.is_dir():
         raise InputError(f"cannot write PNG {str(path)!r}: it is a folder")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=folder)
-    except OSError as exc:
-        raise InputError(f"cannot write PNG {str(path)!r}: {exc.strerror or exc}") from exc
-    os.close(fd)
-    try:
-        try:
-            ok = cv2.imwrite(tmp, np.ascontiguousarray(img))
-        except cv2.error as exc:
-            raise InputError(f"cannot write PNG {str(path)!r}: OpenCV failed: {exc}") from exc
-        if not ok:
-            raise InputError(f"cannot write PNG {str(path)!r}: OpenCV could not encode or write the image")
-        try:
-            with open(tmp, "rb+") as fh:
-                os.fsync(fh.fileno())
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, path)
-        except OSError as exc:
-            if getattr(exc, "errno", None) == 28:  # ENOSPC
-                raise ResourceError(f"cannot write PNG {str(path)!r}: disk full") from exc
-            raise InputError(f"cannot write PNG {str(path)!r}: {exc.strerror or exc}") from exc
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    try:  # make the rename itself durable
-        dfd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(dfd)
-        finally:
-            os.close(dfd)
-    except OSError:
-        pass
+        ok, encoded = cv2.imencode(".png", np.ascontiguousarray(img))
+    except cv2.error as exc:
+        raise InputError(f"cannot write PNG {str(path)!r}: OpenCV failed: {exc}") from exc
+    if not ok:
+        raise InputError(f"cannot write PNG {str(path)!r}: OpenCV could not encode the image")
+    from ..fileutil import atomic_write
+
+    with atomic_write(path, "wb") as fh:  # file-system failures: one WriteError naming the file and cause
+        fh.write(encoded.tobytes())
     return path

@@ -194,23 +194,12 @@ def import_capture(input, output, *, units=None, rate=None, up_axis=None, stabil
 
 def _copy_atomic(src: Path, dst: Path) -> None:
     """Copy ``src`` over ``dst`` through a temporary file in ``dst``'s folder and one rename."""
-    import os
-    import secrets
     import shutil
 
-    tmp = dst.with_name(f".{dst.stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{dst.suffix}")
-    try:
-        with open(src, "rb") as fi, open(tmp, "wb") as fo:
-            shutil.copyfileobj(fi, fo, 1 << 20)
-            fo.flush()
-            os.fsync(fo.fileno())
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, dst)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    from ..fileutil import atomic_write
+
+    with open(src, "rb") as fi, atomic_write(dst, "wb") as fo:
+        shutil.copyfileobj(fi, fo, 1 << 20)
 
 
 def _import_capture(input, out, options, fill_gaps) -> dict:

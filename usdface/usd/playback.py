@@ -19,7 +19,7 @@ from ..errors import InputError
 from ..mesh.model import Region
 from .capture_layer import find_marker_set
 from .layers import open_stage, stage_units
-from .mesh_layer import BINDING_API, MESH_SCHEMAS, read_binding, read_regions
+from .mesh_layer import BINDING_API, find_mesh, read_binding, read_regions
 
 __all__ = ["ShotReader", "face_points_at", "remove_head_motion"]
 
@@ -262,20 +262,11 @@ def remove_head_motion(points: np.ndarray, head: np.ndarray) -> np.ndarray:
 
 
 def _find_face_mesh(stage: Usd.Stage) -> Usd.Prim | None:
-    """The face mesh (usdface schemas first, then the default prim's first Mesh, then any Mesh)."""
-    every = list(Usd.PrimRange.Stage(stage, Usd.PrimAllPrimsPredicate))
-    for prim in every:  # (an untyped over with usdface's schemas: the caller says it has no topology)
-        if any(s.startswith(MESH_SCHEMAS) for s in prim.GetAppliedSchemas()):
-            return prim
-    root = stage.GetDefaultPrim()
-    if root:
-        for prim in Usd.PrimRange(root):
-            if prim.IsA(UsdGeom.Mesh):
-                return prim
-    for prim in every:
-        if prim.IsA(UsdGeom.Mesh):
-            return prim
-    return None
+    """The face mesh (:func:`usdface.usd.mesh_layer.find_mesh`), or None when the stage has none."""
+    try:
+        return find_mesh(stage, what="shot")
+    except InputError:
+        return None
 
 
 def shot_name(path) -> str:
