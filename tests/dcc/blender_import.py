@@ -56,7 +56,12 @@ def _animated_paths(keys) -> int:
     action = keys.animation_data.action if keys is not None and keys.animation_data else None
     if action is None:
         return 0
-    return len({fc.data_path for fc in action.fcurves if fc.data_path.startswith("key_blocks")})
+    if hasattr(action, "fcurves"):  # Blender 4.x
+        curves = list(action.fcurves)
+    else:  # Blender 5: layered actions, curves in the strips' channel bags
+        curves = [fc for layer in action.layers for strip in layer.strips for bag in strip.channelbags
+                  for fc in bag.fcurves]
+    return len({fc.data_path for fc in curves if fc.data_path.startswith("key_blocks")})
 
 
 def main(argv=None) -> int:
