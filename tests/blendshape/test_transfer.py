@@ -72,3 +72,14 @@ def test_transfer_errors(tmp_path, sample_assets, capsys):
     assert main([str(x) for x in base + ["--landmarks", tmp_path / "few.json", "-o", tmp_path / "r.usdc"]]) == 2
     assert "only 2 landmark(s)" in capsys.readouterr().err
     assert not (tmp_path / "r.usdc").exists()
+
+
+def test_the_packaged_generic_rig_is_the_sample_rig(sample_assets):
+    """The default generic shipped in the package is the sample MakeHuman rig, byte for byte."""
+    from usdface.processors.shapes import default_generic
+
+    d = default_generic()
+    assert d["shapes"].read_bytes() == (sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz").read_bytes()
+    assert d["mesh"].read_bytes() == (sample_assets / "meshes" / "makehuman_hm08_face_cm.usdc").read_bytes()
+    assert d["landmarks"].read_bytes() == \
+        (sample_assets / "landmarks" / "makehuman_hm08_face.landmarks.layout.json").read_bytes()

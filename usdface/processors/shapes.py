@@ -6,8 +6,8 @@ projection; the target's topology is never used), then every shape is transferre
 (:mod:`usdface.blendshape.transfer`). The output is a rig layer (mesh, BlendShape prims, a
 skeleton binding, no animation) that ``usdface solve --mesh RIG.usdc`` takes as it is.
 
-The default generic is the MakeHuman rig of the repository's ``sample_assets`` (the face mesh, its
-52 ARKit shapes and its 20 landmarks), found beside the installed package in a source checkout.
+The default generic is the MakeHuman rig shipped in ``usdface/resources/generic`` (the face mesh, its
+52 ARKit shapes and its 20 landmarks), so it works from an installed package.
 """
 from __future__ import annotations
 
@@ -25,15 +25,16 @@ __all__ = ["transfer_shapes", "default_generic", "register_cli"]
 
 
 def default_generic() -> dict:
-    """Paths of the default generic rig (MakeHuman), or InputError when the checkout has none."""
-    root = Path(__file__).resolve().parents[2] / "sample_assets"
-    paths = {"mesh": root / "meshes" / "makehuman_hm08_face_cm.obj",
-             "shapes": root / "meshes" / "makehuman_hm08_face_units_cm.npz",
-             "landmarks": root / "landmarks" / "makehuman_hm08_face.landmarks.layout.json"}
+    """Paths of the default generic rig (MakeHuman, CC0), shipped with the package
+    (``usdface/resources/generic``)."""
+    root = Path(__file__).resolve().parents[1] / "resources" / "generic"
+    paths = {"mesh": root / "makehuman_hm08_face_cm.usdc",
+             "shapes": root / "makehuman_hm08_face_units_cm.npz",
+             "landmarks": root / "makehuman_hm08_face.landmarks.layout.json"}
     missing = [str(p) for p in paths.values() if not p.is_file()]
     if missing:
-        raise InputError("the default generic rig (MakeHuman, in a source checkout's sample_assets/) is not here "
-                         f"({list_names(missing)}); give --generic RIG (and --generic-landmarks)")
+        raise InputError(f"the default generic rig is missing from this installation ({list_names(missing)}); "
+                         "reinstall usdface, or give --generic RIG (and --generic-landmarks)")
     return paths
 
 
