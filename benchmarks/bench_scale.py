@@ -97,14 +97,18 @@ def main() -> int:
     capture = REPO.parent / "shared" / "data" / "animface" / "JawMoCap.ma"
     if not capture.is_file():
         capture = SAMPLES / "capture" / "JawMoCap.ma"
-    options = {"method": args.method}
+    options = {"method": args.method, "layout": str(SAMPLES / "layouts" / "makehuman_hm08_face.layout.json"),
+               "trim": list(args.trim)}
     if args.backend:
         options["backend"] = args.backend
     print(f"run --mesh {obj.name} --capture {capture.name} --layout makehuman_hm08_face.layout.json "
-          f"--trim {args.trim[0]} {args.trim[1]} {' '.join(f'--{k} {v}' for k, v in options.items())}:")
+          f"--trim {args.trim[0]} {args.trim[1]} --method {args.method}"
+          f"{' --backend ' + args.backend if args.backend else ''}:")
     t0, c0 = time.perf_counter(), time.process_time()
-    summary = run(str(obj), str(capture), str(out / "shot"), layout=str(SAMPLES / "layouts" /
-                  "makehuman_hm08_face.layout.json"), trim=tuple(args.trim), **options)
+    try:
+        summary = run(str(obj), str(capture), str(out / "shot"), options)
+    except TypeError:       # usdface before the options object: keyword options
+        summary = run(str(obj), str(capture), str(out / "shot"), **options)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     print(f"  {'whole run':15s} {wall:8.1f} s wall {cpu:8.1f} s CPU   peak RSS of the process "
           f"{max(r[4] for r in rows):.0f} MB")

@@ -26,3 +26,16 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"{SHARED_DATA} not present")
     return SHARED_DATA
+
+
+def run_cli(*args) -> int:
+    """`usdface ARGS...` in this process; returns the exit code."""
+    from usdface.cli import main
+
+    return main([str(a) for a in args])
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """Run `usdface ARGS...` in-process; returns the exit code."""
+    return run_cli

@@ -1,84 +1,28 @@
 """The ``usdface`` command: one entry point, one subcommand per processor.
 
-Thin by design: parse options, call a processor, report. Every UsdFaceError becomes one line on
-stderr and exit code 2; a failed `check` exits 1.
+Thin by design: parse options, call a processor, report. Every error reaches the user as one line
+on stderr (no traceback) and an exit code: 2 bad input or usage (a UsdFaceError; also argparse's
+own usage errors), 1 a failure while working (environment faults included: disk full, read-only
+folder, permission, out of memory, a USD error, an output folder locked by another run; a failed
+`check`; a batch with a failed shot), 130 interrupted by Ctrl-C (SIGINT), 143 stopped by SIGTERM
+(how farm schedulers stop jobs), both after removing the partial work.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import logging
+import os
+import signal
 import sys
+import threading
 
 from . import __version__
-from .errors import UsdFaceError
+from .cliargs import add_common_options, add_options, options_from_args
+from .errors import Interrupted, UsdFaceError
+from .options import COLORS, BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
 
 log = logging.getLogger("usdface")
-
-
-def _add_common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--json", action="store_true", help="print a machine-readable JSON summary on stdout")
-    p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
-    p.add_argument("-q", "--quiet", action="store_true", help="only errors")
-
-
-def _capture_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("capture reading and conditioning")
-    g.add_argument("--units", choices=["mm", "cm", "dm", "m", "in", "ft"],
-                   help="units of the capture file when it does not declare them (CSV)")
-    g.add_argument("--rate", type=float, metavar="HZ", help="capture rate when the file does not declare it")
-    g.add_argument("--up-axis", choices=["Y", "Z"], help="the source's up axis (default: Z for C3D, Y otherwise)")
-    g.add_argument("--stabilize", nargs="?", const="auto", metavar="auto|M1,M2,...",
-                   help="remove rigid head motion: 'auto' picks the most rigid markers, or name them")
-    g.add_argument("--fill-gaps", type=_positive_int, metavar="N", help="fill gaps of at most N frames")
-    g.add_argument("--filter", choices=["butterworth", "savgol"], help="zero-phase noise filter")
-    g.add_argument("--cutoff", type=_positive_float, default=8.0, metavar="HZ",
-                   help="filter cutoff (default 8 Hz; below half the capture rate)")
-    g.add_argument("--trim", nargs=2, type=int, metavar=("START", "END"),
-                   help="keep frames START..END-1 (0-based frame indices of the file)")
-    g.add_argument("--start-frame", type=int, metavar="F", help="time code of the first frame after trimming")
-    g.add_argument("--resample", type=_positive_float, metavar="HZ", help="resample to this rate")
-    g.add_argument("--neutral", default=None, metavar="FRAME|auto",
-                   help="neutral frame (0-based index after trimming) or 'auto' (default: first frame)")
-
-
-def _distance_options(p: argparse.ArgumentParser, *, with_method: bool = True) -> None:
-    g = p.add_argument_group("distances")
-    if with_method:
-        g.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"], default="hybrid",
-                       help="Euclidean (Eq. 6), geodesic (Eq. 7) or hybrid (Eq. 8); default hybrid")
-    g.add_argument("--backend", choices=["graph", "heat", "exact"], default="graph",
-                   help="geodesic back-end: shortest edge paths (the paper's), heat method, exact polyhedral")
-    g.add_argument("--region-radius", type=float, default=1.0, metavar="CM",
-                   help="hybrid: geodesic regions = vertices within this distance of the mouth/eye loops (cm)")
-    g.add_argument("--sigma", type=float, default=2.0, metavar="CM", help="hybrid: weight width (cm)")
-    g.add_argument("--threshold", type=float, default=0.6, help="hybrid: geodesic term skipped where w <= this")
-    g.add_argument("--pin-border", choices=["upper", "all", "none"], default="upper",
-                   help="outer border as zero-displacement centres: above the mouth corners (default; the "
-                        "jaw's border moves with the jaw), all of it, or none")
-    g.add_argument("--components", choices=["error", "euclidean"], default="error",
-                   help="markers on different mesh components: error, or Euclidean distance across them")
-
-
-def add_transfer_options(p: argparse.ArgumentParser) -> None:
-    """--rbf, --kernel, --stiffness, --regularization, --polynomial (transfer, run, skel)."""
-    _transfer_options(p)
-
-
-def _transfer_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("transfer")
-    g.add_argument("--rbf", choices=["paper", "interpolate"], default="interpolate",
-                   help="paper: Eqs. 1-5 as published; interpolate: exact RBF solve (default)")
-    g.add_argument("--kernel", default="gaussian",
-                   choices=["gaussian", "multiquadric", "inverse_multiquadric", "thin_plate_spline", "cubic"])
-    g.add_argument("--stiffness", metavar="WIDTH|JSON",
-                   help="kernel width in mesh units for every marker, or a JSON file {marker: width} "
-                        "(default: 1.1 x the median nearest-marker distance, about 2 cm on a face)")
-    g.add_argument("--regularization", type=_regularization_arg, default="auto", metavar="LAMBDA|auto",
-                   help="ridge term added to the kernel matrix (interpolate mode). auto (default): exact "
-                        "interpolation unless it amplifies marker motion more than 25x (geodesic kernels can), "
-                        "then the lambda with the least amplification")
-    g.add_argument("--polynomial", action="store_true", help="add a linear polynomial term (interpolate mode)")
 
 
 def _add_subcommands(sub) -> None:
@@ -87,8 +31,8 @@ def _add_subcommands(sub) -> None:
                                    "(/Capture/Markers), optionally stabilised, gap-filled, filtered, trimmed, resampled.")
     p.add_argument("input", help="capture file")
     p.add_argument("-o", "--output", required=True, help="capture layer to write (.usdc)")
-    _capture_options(p)
-    _add_common(p)
+    add_options(p, CaptureOptions)
+    add_common_options(p)
     p.set_defaults(func=_cmd_import_capture)
 
     p = sub.add_parser("import-mesh", help="import a face mesh (OBJ, PLY, STL, OFF, USD) into a mesh layer",
@@ -99,7 +43,7 @@ def _add_subcommands(sub) -> None:
     p.add_argument("--units", choices=["mm", "cm", "dm", "m", "in", "ft"],
                    help="units of the mesh file (OBJ has none: default cm)")
     p.add_argument("--up-axis", choices=["Y", "Z"], default="Y", help="the source's up axis (Z is rotated to Y)")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_import_mesh)
 
     p = sub.add_parser("bind", help="bind capture markers to points on the mesh surface",
@@ -110,10 +54,9 @@ def _add_subcommands(sub) -> None:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--layout", help="marker layout JSON (usdface-layout/1)")
     src.add_argument("--auto", action="store_true", help="align the neutral marker cloud to the surface")
-    p.add_argument("--retarget", choices=["displacement", "similarity"], default="displacement",
-                   help="displacement: capture motion rotated, not scaled (the paper); similarity: also scaled")
+    add_options(p, BindOptions)
     p.add_argument("-o", "--output", required=True, help="binding layer to write (.usda)")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_bind)
 
     p = sub.add_parser("distances", help="vertex-to-marker distance matrices (euclidean, geodesic, hybrid)",
@@ -121,9 +64,9 @@ def _add_subcommands(sub) -> None:
                                    "(plus pinned constraint vertices) and store them on the mesh in an analysis layer.")
     p.add_argument("--mesh", required=True, help="mesh layer")
     p.add_argument("--binding", required=True, help="binding layer")
-    _distance_options(p)
+    add_options(p, DistanceOptions)
     p.add_argument("-o", "--output", required=True, help="analysis layer to write (.usdc)")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_distances)
 
     p = sub.add_parser("transfer", help="RBF transfer of the capture onto the face -> animated points",
@@ -135,9 +78,10 @@ def _add_subcommands(sub) -> None:
     p.add_argument("--analysis", required=True, help="analysis layer (from `usdface distances`)")
     p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"],
                    help="which distance matrix of the analysis layer (default: its only one)")
-    _transfer_options(p)
+    add_options(p, TransferOptions)
+    add_options(p, RunOptions, only={"head_motion"})
     p.add_argument("-o", "--output", required=True, help="animation layer to write (.usdc)")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_transfer)
 
     p = sub.add_parser("run", help="the main job: mesh + capture -> OUTDIR/shot.usda",
@@ -147,40 +91,21 @@ def _add_subcommands(sub) -> None:
     p.add_argument("--mesh", required=True, help="face mesh (OBJ, PLY, ... or USD)")
     p.add_argument("--capture", required=True,
                    help="capture (Maya ASCII, C3D, TRC, CSV, a capture layer, or a video of painted dots)")
-    p.add_argument("--layout", help="marker layout JSON (required for a video capture)")
-    p.add_argument("--auto", nargs="?", const=True, type=int, metavar="N",
-                   help="bind automatically; for a video capture, --auto N finds N dots on the first frame")
-    p.add_argument("--output-kind", dest="output_kind", choices=["points", "skel", "both"],
-                   default="points", help="time-sampled points (anim.usdc), UsdSkel keyframes (skel.usdc), or both")
-    p.add_argument("--max-influences", type=int, default=8, metavar="K", help="skel: joints per vertex (default 8)")
-    g = p.add_argument_group("video capture")
-    g.add_argument("--seeds", help="JSON {marker: [x, y]} of every dot on the first frame (pixels)")
-    g.add_argument("--radius", type=float, nargs=2, default=(3.0, 10.0), metavar=("R1", "R2"),
-                   help="dot radius range in pixels (default 3 10)")
-    p.add_argument("--retarget", choices=["displacement", "similarity"], default="displacement")
-    p.add_argument("--mesh-units", choices=["mm", "cm", "dm", "m", "in", "ft"], help="units of the mesh file")
-    p.add_argument("--method", choices=["euclidean", "geodesic", "hybrid"], default="hybrid",
-                   help="distance method (default hybrid)")
-    _distance_options(p, with_method=False)
-    _transfer_options(p)
-    _capture_options(p)
-    p.set_defaults(stabilize="auto")
-    p.add_argument("--no-stabilize", dest="stabilize", action="store_const", const=None,
-                   help="keep the head motion in the marker displacements")
+    add_options(p, RunOptions)
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="output folder (created if missing)")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("info", help="what a layer holds: prims, markers, frames, rate, units, schemas",
                        description="Summarise a USD layer written by usdface (or any USD file).")
     p.add_argument("file")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("check", help="validate a layer (USD's validators + usdface's rules); exit 1 on errors",
                        description="Run UsdValidation's validators and usdface's own schema rules on a file.")
     p.add_argument("file")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_check)
 
     p = sub.add_parser("preview", help="software-rendered PNG of a mesh/binding/animation layer (no GPU)",
@@ -189,79 +114,32 @@ def _add_subcommands(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="PNG to write")
     p.add_argument("--frame", type=float, help="time code to show (default: the layer's start)")
     p.add_argument("--frames", type=float, nargs="+", metavar="F", help="several time codes: a contact sheet")
-    p.add_argument("--view", choices=["front", "left", "right", "side"], default="front")
+    from .preview.camera import VIEW_CHOICES
+
+    p.add_argument("--view", choices=VIEW_CHOICES, default="front",
+                   help="camera (the list playblast shares; turntable turns only in a playblast: a still is the front)")
     p.add_argument("--size", type=int, default=768, help="image size in pixels (square)")
-    p.add_argument("--color", choices=["regions", "displacement", "error", "hybrid-weight", "none"], default="regions",
+    p.add_argument("--color", choices=COLORS, default="regions",
                    help="colour the surface by region, by displacement from the rest pose, by error against "
                         "--reference, or by the hybrid weight")
     p.add_argument("--reference", help="a layer with reference points (for --color error)")
     p.add_argument("--labels", action="store_true", help="write marker names")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_preview)
 
     p = sub.add_parser("plugin-path", help="print the folder to put on PXR_PLUGINPATH_NAME (for DCCs)",
                        description="Print the folder holding usdface's plugInfo.json. DCCs import their own pxr "
                                    "before any plug-in: set PXR_PLUGINPATH_NAME to this folder before starting them.")
-    _add_common(p)
+    add_common_options(p)
     p.set_defaults(func=_cmd_plugin_path)
 
 
 # -- command implementations (parse -> processor -> report) ----------------------------------------
 
-def _positive_int(value):
-    try:
-        n = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number > 0; got {value!r}") from None
-    if n <= 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number > 0; got {value!r}")
-    return n
-
-
-def _positive_float(value):
-    try:
-        x = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0; got {value!r}") from None
-    if not x > 0:
-        raise argparse.ArgumentTypeError(f"expected a number > 0; got {value!r}")
-    return x
-
-
-def _regularization_arg(value):
-    if value == "auto":
-        return value
-    try:
-        lam = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0 or 'auto'; got {value!r}") from None
-    if not lam >= 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0 or 'auto'; got {value!r}")
-    return lam
-
-
-def _stabilize_arg(value):
-    if value is None or value == "auto":
-        return value
-    return [v.strip() for v in value.split(",") if v.strip()]
-
-
-def _neutral_arg(value):
-    if value is None or value == "auto":
-        return value
-    try:
-        return int(value)
-    except ValueError:
-        raise UsdFaceError(f"--neutral: expected a frame index or 'auto'; got {value!r}") from None
-
-
 def _cmd_import_capture(args) -> dict:
     from .processors.import_capture import import_capture
 
-    return import_capture(args.input, args.output, units=args.units, rate=args.rate, up_axis=args.up_axis,
-                          stabilize=_stabilize_arg(args.stabilize), fill_gaps=args.fill_gaps, filter=args.filter,
-                          cutoff=args.cutoff, trim=args.trim, start_frame=args.start_frame,
-                          resample=args.resample, neutral=_neutral_arg(args.neutral))
+    return import_capture(args.input, args.output, **options_from_args(CaptureOptions, args).to_dict())
 
 
 def _cmd_import_mesh(args) -> dict:
@@ -273,38 +151,31 @@ def _cmd_import_mesh(args) -> dict:
 def _cmd_bind(args) -> dict:
     from .processors.bind import bind
 
-    return bind(args.mesh, args.capture, args.output, layout=args.layout, auto=args.auto, retarget=args.retarget)
+    return bind(args.mesh, args.capture, args.output, layout=args.layout, auto=args.auto,
+                **options_from_args(BindOptions, args).to_dict())
 
 
 def _cmd_distances(args) -> dict:
     from .processors.distances import distances
 
-    return distances(args.mesh, args.binding, args.output, method=args.method, backend=args.backend,
-                     region_radius_cm=args.region_radius, sigma_cm=args.sigma, threshold=args.threshold,
-                     pin_border=args.pin_border, components=args.components)
+    o = options_from_args(DistanceOptions, args)
+    return distances(args.mesh, args.binding, args.output, method=o.method, backend=o.backend,
+                     region_radius_cm=o.region_radius, sigma_cm=o.sigma, threshold=o.threshold,
+                     pin_border=o.pin_border, components=o.components)
 
 
 def _cmd_transfer(args) -> dict:
     from .processors.transfer import transfer
 
-    return transfer(args.mesh, args.capture, args.binding, args.analysis, args.output, rbf=args.rbf,
-                    kernel=args.kernel, stiffness=args.stiffness, regularization=args.regularization,
-                    polynomial=args.polynomial, method=args.method)
+    return transfer(args.mesh, args.capture, args.binding, args.analysis, args.output, method=args.method,
+                    head_motion=getattr(args, "head_motion", True),
+                    **options_from_args(TransferOptions, args).to_dict())
 
 
 def _cmd_run(args) -> dict:
     from .processors.run import run
 
-    return run(args.mesh, args.capture, args.output, layout=args.layout, auto=args.auto, method=args.method,
-               backend=args.backend, rbf=args.rbf, kernel=args.kernel, stiffness=args.stiffness,
-               regularization=args.regularization, polynomial=args.polynomial, retarget=args.retarget,
-               mesh_units=args.mesh_units, units=args.units, rate=args.rate, up_axis=args.up_axis,
-               stabilize=_stabilize_arg(args.stabilize), fill_gaps=args.fill_gaps, filter=args.filter,
-               cutoff=args.cutoff, trim=args.trim, neutral=_neutral_arg(args.neutral),
-               region_radius_cm=args.region_radius, sigma_cm=args.sigma, threshold=args.threshold,
-               pin_border=args.pin_border, components=args.components, output=args.output_kind,
-               seeds=args.seeds, radius=tuple(args.radius), max_influences=args.max_influences,
-               resample=args.resample, start_frame=args.start_frame)
+    return run(args.mesh, args.capture, args.output, options_from_args(RunOptions, args))
 
 
 def _cmd_info(args) -> dict:
@@ -346,12 +217,11 @@ PLUGIN_COMMANDS = (
     "usdface.processors.skel",
     "usdface.processors.acquisition",
     "usdface.processors.tissue",
+    "usdface.processors.playblast",
+    "usdface.processors.report",
+    "usdface.processors.solve",
+    "usdface.processors.shapes",
 )
-
-
-def add_common_options(p: argparse.ArgumentParser) -> None:
-    """--json, -v, -q: every subcommand has them."""
-    _add_common(p)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -379,19 +249,98 @@ def _print_summary(summary: dict, as_json: bool, quiet: bool) -> None:
         print(line)
 
 
+#: argparse destinations naming files a command writes; every other argument naming an existing
+#: file is an input, and no output may be an input (usdface.fileutil.same_file_problems)
+OUTPUT_DESTS = ("output", "csv", "preview", "disparity", "report", "layout_output", "summary")
+
+
+def _option_labels(parser: argparse.ArgumentParser) -> dict:
+    """{dest: how the user wrote it ("-o", "--mesh", "input")} for the chosen subcommand."""
+    labels = {}
+    todo = [parser]
+    while todo:
+        p = todo.pop()
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                todo.extend(action.choices.values())
+            elif action.dest not in labels:
+                labels[action.dest] = action.option_strings[0] if action.option_strings else action.dest
+    return labels
+
+
+def refuse_outputs_over_inputs(args, parser: argparse.ArgumentParser | None = None) -> None:
+    """Every command: refuse (exit 2) when a file it would write is one of the files it reads."""
+    from .fileutil import refuse_overwriting_inputs
+
+    labels = _option_labels(parser) if parser is not None else {}
+    outputs, inputs = {}, {}
+    for dest, value in vars(args).items():
+        if dest in ("func", "command"):
+            continue
+        label = labels.get(dest, dest)
+        for v in (value if isinstance(value, list) else [value]):
+            if not isinstance(v, (str, os.PathLike)) or not str(v):
+                continue
+            if dest in OUTPUT_DESTS:
+                outputs[label] = v
+            elif os.path.exists(v):
+                inputs.setdefault(label, []).append(os.fspath(v))
+    if outputs and inputs:
+        from .usd.layers import composed_files
+
+        for label, paths in list(inputs.items()):
+            for p in paths:
+                deps = composed_files(p)
+                if deps:
+                    inputs[f"composed by {label} {p}"] = deps
+        refuse_overwriting_inputs(outputs, inputs)
+
+
+class _terminate_as_interrupt:
+    """SIGTERM raises :class:`~usdface.errors.Interrupted` (like Ctrl-C), so partial work is removed."""
+
+    def __enter__(self):
+        self.previous = None
+        if threading.current_thread() is threading.main_thread() and hasattr(signal, "SIGTERM"):
+            self.previous = signal.signal(signal.SIGTERM, self._raise)
+        return self
+
+    @staticmethod
+    def _raise(signum, frame):
+        raise Interrupted(signum)
+
+    def __exit__(self, *exc):
+        if self.previous is not None:
+            signal.signal(signal.SIGTERM, self.previous)
+        return False
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     level = logging.ERROR if args.quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
     logging.basicConfig(level=level, format="usdface: %(levelname)s: %(message)s", stream=sys.stderr)
+    name = f"usdface {args.command}"
     try:
-        summary = args.func(args)
+        with _terminate_as_interrupt():
+            refuse_outputs_over_inputs(args, parser)
+            summary = args.func(args)
     except UsdFaceError as exc:
-        print(f"usdface {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except Interrupted as exc:
+        print(f"{name}: stopped by {exc}; partial work removed", file=sys.stderr)
+        return exc.exit_code
     except KeyboardInterrupt:
-        print(f"usdface {args.command}: interrupted", file=sys.stderr)
+        print(f"{name}: interrupted; partial work removed", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - file system, memory and USD errors: one line, exit 1
+        if not isinstance(exc, (OSError, MemoryError)) and not type(exc).__module__.startswith("pxr"):
+            raise  # a bug: the traceback is what a report needs
+        from .fileutil import describe_exception
+
+        print(f"{name}: error: {describe_exception(exc)}", file=sys.stderr)
+        return 1
     _print_summary(summary, args.json, args.quiet)
     return int(summary.get("_exit", 0))
 

@@ -1,13 +1,18 @@
 """One exception hierarchy for usdface.
 
 Every error names what is wrong (file, prim, marker, option) and what was expected, so the CLI can
-print it as is and exit non-zero.
+print it as is and exit non-zero: ``exit_code`` 2 for bad input or usage (the class default), 1 for
+a failure of the environment while working (:class:`EnvironmentFault`: disk full, read-only
+folder, permission, memory, a folder locked by another run).
 """
 from __future__ import annotations
 
 
 class UsdFaceError(Exception):
     """Base class of every error usdface raises on purpose."""
+
+    #: the command line's exit code for this error (2: bad input or usage)
+    exit_code = 2
 
 
 class InputError(UsdFaceError):
@@ -30,12 +35,59 @@ class MeshError(InputError):
     """A mesh has no faces, degenerate faces, or topology usdface cannot use."""
 
 
+class PlausibilityError(InputError):
+    """Data that reads fine but cannot be what it claims (a marker 50 cm off the face, a capture in
+    metres declared cm...). The message names each finding and the ``--allow`` option that accepts
+    it (:mod:`usdface.capture.plausibility`)."""
+
+    def __init__(self, message: str, findings=()):
+        super().__init__(message)
+        self.findings = tuple(findings)
+
+
 class ComputeError(UsdFaceError):
     """A computation cannot give a meaningful result (singular system, infinite distances...)."""
 
 
-class ResourceError(UsdFaceError):
+class EnvironmentFault(UsdFaceError):
+    """The machine, not the input, stopped the work: a file could not be written or read (disk full,
+    read-only file system, permission), memory ran out, or a folder is in use. Exit code 1."""
+
+    exit_code = 1
+
+
+class ResourceError(EnvironmentFault):
     """Not enough memory or disk for the requested work; the message says the estimate."""
+
+
+class WriteError(EnvironmentFault):
+    """A file could not be written; the message names the file and the cause (disk full, ...)."""
+
+
+class LockedError(EnvironmentFault):
+    """An output folder is being written by another usdface process (named with host and pid)."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """The process was asked to stop (SIGINT = Ctrl-C, exit 130; SIGTERM = a scheduler, exit 143).
+
+    A KeyboardInterrupt, so every ``finally`` runs and the partial work is removed as for Ctrl-C.
+    """
+
+    def __init__(self, signum: int):
+        import signal
+
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+class DependencyError(EnvironmentFault):
+    """An optional dependency (or a part of it, such as an encoder) is missing; the message names
+    the extra or package to install."""
 
 
 class SchemaRegistrationError(UsdFaceError):

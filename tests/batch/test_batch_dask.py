@@ -189,8 +189,8 @@ def test_unreachable_scheduler_fails_fast(tmp_path, make_manifest, capsys):
     rc = cli.main(["batch", str(manifest), "--scheduler", f"tcp://127.0.0.1:{_free_port()}"])
     seconds = time.perf_counter() - t0
     err = capsys.readouterr().err
-    assert rc == 2 and seconds < 15, seconds
-    assert "no Dask scheduler answered within 5 s" in err
+    assert rc == 1 and seconds < 10, seconds  # an environment fault, found within 10 s (README)
+    assert "nothing listens there" in err
 
 
 def test_example_manifest_runs_as_written(repo_root, tmp_path):

@@ -45,29 +45,28 @@ def test_replaces_an_existing_file_atomically(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.png"]
 
 
-def test_failed_write_leaves_the_old_file_and_no_temp(tmp_path, monkeypatch):
+def test_failed_encode_leaves_the_old_file_and_no_temp(tmp_path, monkeypatch):
     path = tmp_path / "d.png"
     old = image(seed=3)
     write_png(path, old)
-    monkeypatch.setattr(cv2, "imwrite", lambda *a, **k: False)
+    monkeypatch.setattr(cv2, "imencode", lambda *a, **k: (False, None))
     with pytest.raises(InputError, match="d.png"):
         write_png(path, image(seed=4))
     np.testing.assert_array_equal(cv2.imread(str(path)), old)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.png"]
 
 
-def test_temp_file_is_a_png_in_the_same_folder(tmp_path, monkeypatch):
-    seen = []
-    real = cv2.imwrite
+def test_a_full_disk_leaves_the_old_file_and_no_temp(tmp_path, monkeypatch):
+    from usdface.errors import WriteError
 
-    def spy(name, img, *a):
-        seen.append(name)
-        return real(name, img, *a)
-
-    monkeypatch.setattr(cv2, "imwrite", spy)
-    write_png(tmp_path / "e.png", image())
-    assert len(seen) == 1 and seen[0].endswith(".png") and os.path.dirname(seen[0]) == str(tmp_path)
-    assert seen[0] != str(tmp_path / "e.png")
+    path = tmp_path / "e.png"
+    old = image(seed=5)
+    write_png(path, old)
+    monkeypatch.setenv("USDFACE_TEST_FAULT", "ENOSPC:save")  # the atomic writer's fault hook
+    with pytest.raises(WriteError, match="e.png.*disk full"):
+        write_png(path, image(seed=6))
+    np.testing.assert_array_equal(cv2.imread(str(path)), old)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.png"]
 
 
 def test_missing_folder_names_the_path(tmp_path):
@@ -110,11 +109,9 @@ def test_module_uses_the_patched_cv2():
 
 
 def test_unwritable_folder_names_the_path(tmp_path, monkeypatch):
-    import tempfile
+    from usdface.errors import WriteError
 
-    def deny(*a, **k):
-        raise PermissionError(13, "Permission denied")
-
-    monkeypatch.setattr(tempfile, "mkstemp", deny)
-    with pytest.raises(InputError, match=r"l\.png.*Permission denied"):
+    monkeypatch.setenv("USDFACE_TEST_FAULT", "EACCES:create")  # the atomic writer's fault hook
+    with pytest.raises(WriteError, match=r"l\.png.*permission denied"):
         write_png(tmp_path / "l.png", image())
+    assert list(tmp_path.iterdir()) == []

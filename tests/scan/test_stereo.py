@@ -30,18 +30,84 @@ def test_bad_pixel_rate_definition():
     assert r["density"] == pytest.approx(2 / 3)
 
 
-def test_graphcut_beats_plain_sgbm_on_middlebury_crop(moto):
+def test_graphcut_beats_sgbm_on_middlebury_crop(moto):
     left, right, gt = moto
     L, R, G = left[CROP], right[CROP], gt[CROP]
-    plain = compute_disparity(L, R, method="sgbm-plain", num_disparities=64, min_texture=0)
-    wls = compute_disparity(L, R, method="sgbm", num_disparities=64, min_texture=0)
+    sgbm = compute_disparity(L, R, method="sgbm", num_disparities=64, min_texture=0)
+    wls = compute_disparity(L, R, method="sgbm-wls", num_disparities=64, min_texture=0)
     gc = compute_disparity(L, R, method="graphcut", num_disparities=64, max_cycles=1, min_texture=0)
-    b_plain = bad_pixel_rate(plain.disparity, G)["bad"]
+    b_sgbm = bad_pixel_rate(sgbm.disparity, G)["bad"]
     b_wls = bad_pixel_rate(wls.disparity, G)["bad"]
     b_gc = bad_pixel_rate(gc.disparity, G)["bad"]
-    assert b_gc < b_plain
+    assert b_gc < b_sgbm
     assert b_gc < 0.25 and b_wls < 0.35
-    assert gc.valid.mean() > 0.7 and wls.valid.mean() > 0.6
+    assert gc.valid.mean() > 0.7 and wls.valid.mean() > 0.6 and sgbm.valid.mean() > 0.65
+
+
+def _plain_opencv_sgbm(left, right):
+    """The fixed baseline: cv2.StereoSGBM with 64 disparities, block 5, its other defaults."""
+    import cv2
+
+    raw = cv2.StereoSGBM_create(minDisparity=0, numDisparities=64, blockSize=5).compute(left, right)
+    d = raw.astype(np.float32) / 16
+    d[raw < 0] = np.nan
+    return d
+
+
+def test_cli_default_beats_plain_opencv_sgbm_on_the_motorcycle(moto, shared_data, tmp_path, capsys):
+    """`usdface stereo L R --ground-truth GT` prints the score; its default beats the baseline."""
+    from usdface.cli import main
+    from usdface.io.images import read_float_map
+
+    left, right, gt = moto
+    d = shared_data / "images" / "stereo"
+    plain = bad_pixel_rate(_plain_opencv_sgbm(left, right), gt)["bad"]
+    assert plain == pytest.approx(0.205, abs=0.002)
+    out = tmp_path / "disp.pfm"
+    assert main([
+        "stereo", str(d / "motorcycle_left.png"), str(d / "motorcycle_right.png"),
+        "--ground-truth", str(d / "motorcycle_disp.npz"), "--disparity", str(out), "--json"]) == 0
+    import json
+
+    summary = json.loads(capsys.readouterr().out)
+    score = summary["groundTruth"]
+    assert score["pixels"] == int(np.isfinite(gt).sum())
+    assert score["bad"] < 0.5 * plain  # 9.1% vs 20.5%
+    assert score["bad"] == pytest.approx(0.091, abs=0.003)
+    # the score is the map written: recomputed independently from the file
+    written = read_float_map(out)
+    assert np.isfinite(written).all()
+    assert bad_pixel_rate(written, gt)["bad"] == pytest.approx(score["bad"], abs=1e-9)
+    # --fill none leaves rejected pixels empty, and they count as bad
+    assert main(["stereo", str(d / "motorcycle_left.png"), str(d / "motorcycle_right.png"),
+                 "--ground-truth", str(d / "motorcycle_disp.npz"), "--fill", "none"]) == 0
+    text = capsys.readouterr().out
+    assert "missing counted bad): 20.6%" in text
+
+
+def test_fill_background_takes_the_farther_neighbour():
+    from usdface.scan.stereo import fill_background
+
+    d = np.array([[20.0, 20.0, np.nan, np.nan, 8.0, 8.0], [np.nan, 5.0, 5.0, 30.0, np.nan, np.nan],
+                  [np.nan] * 6])
+    valid = np.isfinite(d)
+    valid[0, 0] = False  # rejected: filled although it has a value
+    f = fill_background(d, valid)
+    np.testing.assert_array_equal(f[0], [20, 20, 8, 8, 8, 8])
+    np.testing.assert_array_equal(f[1], [5, 5, 5, 30, 30, 30])
+    assert np.isnan(f[2]).all()
+    np.testing.assert_array_equal(fill_background(d.T, valid.T, vertical=True), f.T)
+
+
+def test_ground_truth_of_another_size_is_refused(shared_data, tmp_path, capsys):
+    from usdface.cli import main
+
+    d = shared_data / "images" / "stereo"
+    bad = tmp_path / "gt.npy"
+    np.save(bad, np.zeros((10, 10), np.float32))
+    assert main(["stereo", str(d / "motorcycle_left.png"), str(d / "motorcycle_right.png"),
+                 "--ground-truth", str(bad)]) == 2
+    assert "gt.npy: 10x10 but the images are 741x500" in capsys.readouterr().err
 
 
 def test_vertical_pair_is_the_transposed_horizontal_one(moto):
@@ -82,7 +148,8 @@ def face_pair(sample_assets, shared_data):
     return render_stereo_pair(scene, size=(320, 240)), render_stereo_pair(scene, size=(240, 320), vertical=True)
 
 
-@pytest.mark.parametrize("method, median_mm, p95_mm", [("sgbm", 2.5, 10.0), ("graphcut", 1.5, 6.0)])
+@pytest.mark.parametrize("method, median_mm, p95_mm", [("sgbm", 1.5, 6.0), ("sgbm-wls", 2.5, 10.0),
+                                                       ("graphcut", 1.5, 6.0)])
 def test_rendered_face_depth_error(face_pair, method, median_mm, p95_mm):
     for pair in face_pair:
         cal = calibration_from_dict(pair["calibration"])

@@ -71,18 +71,29 @@ def test_muscles_simulate_commands(tissue_cli, mesh_layer, tmp_path, sample_asse
     anim = tmp_path / "anim.usdc"
     assert tissue_cli("simulate", "--mesh", mesh_layer, "--rig", rig, "--timeline", timeline, "-o", anim, "--json") == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["frames"] == 3 and summary["springs"] == 39380 and summary["elements"] == 3868
+    # time codes are frame numbers from 0: the keys stay at frames 1..3 and frame 0 holds the first key
+    assert summary["frames"] == 4 and summary["springs"] == 39380 and summary["elements"] == 3868
     times, pts = read_animation_points(anim)
-    assert times.tolist() == [1.0, 2.0, 3.0] and pts.shape == (3, 2020, 3)
-    assert np.abs(pts[0] - pts[1]).max() > 0.05        # the face moves
+    assert times.tolist() == [0.0, 1.0, 2.0, 3.0] and pts.shape == (4, 2020, 3)
+    assert np.abs(pts[1] - pts[2]).max() > 0.05        # the face moves
     t, contr = read_contractions(anim)
-    assert contr["zygomaticMajor_L"].tolist() == pytest.approx([0.0, 0.5, 1.0])
+    assert contr["zygomaticMajor_L"].tolist() == pytest.approx([0.0, 0.0, 0.5, 1.0])
+    # the layer stands alone (mesh and muscles come with it); the shot stage sits beside it
+    from pxr import Usd, UsdGeom
+
+    alone = Usd.Stage.Open(str(anim))
+    assert alone.GetPrimAtPath("/Face/Geom").GetTypeName() == "Mesh"
+    assert UsdGeom.Mesh(alone.GetPrimAtPath("/Face/Geom")).GetPointsAttr().GetNumTimeSamples() == 4
+    assert alone.GetPrimAtPath("/Face/Muscles/zygomaticMajor_L").GetTypeName() == "BasisCurves"
+    assert summary["shot"] == str(tmp_path / "anim_shot.usda")
+    shot = Usd.Stage.Open(summary["shot"])
+    assert (shot.GetStartTimeCode(), shot.GetEndTimeCode(), shot.GetTimeCodesPerSecond()) == (0, 3, 24)
     assert not contr["zygomaticMajor_R"].any()
     # an expression preset, ramped and held
     anim2 = tmp_path / "surprise.usdc"
     assert tissue_cli("simulate", "--mesh", mesh_layer, "--rig", rig, "--expression", "surprise", "--ramp", "2",
                       "--hold", "1", "-o", anim2, "-q") == 0
-    assert read_animation_points(anim2)[1].shape[0] == 4
+    assert read_animation_points(anim2)[0].tolist() == [0.0, 1.0, 2.0, 3.0]  # ramp 0..2, hold to 3
 
 
 def test_bad_inputs_exit_2_and_leave_nothing(tissue_cli, mesh_layer, tmp_path, sample_assets, capsys):

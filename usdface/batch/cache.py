@@ -5,7 +5,8 @@ Layout on disk::
     ROOT/<kind>/<key[:2]>/<key>/          one entry (a folder), never modified once in place
         meta.json                         written last: the entry's metadata + size and sha256 of each file
         <files...>                        the payload (an .npz of arrays, a copied layer, ...)
-    ROOT/<kind>/.tmp-<pid>-<token>/       an entry being written
+    ROOT/<kind>/.tmp-<pid>@<host>-<token>/  an entry being written (removed by the next batch once its
+                                          writer is dead: :meth:`ContentCache.tidy`)
     ROOT/locks/<kind>-<key>.lock          advisory locks (one machine); Dask locks on a farm
 
 An entry is written into a temporary folder beside its final place, every file fsynced, and the
@@ -36,7 +37,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import OptionError, ResourceError
-from ..fileutil import file_digest, fsync_dir
+from ..fileutil import HOST_TAG, file_digest, fsync_dir, owner_is_dead
 
 log = logging.getLogger("usdface")
 
@@ -186,7 +187,7 @@ class ContentCache:
         return True
 
     def _discard(self, path: Path) -> None:
-        trash = path.with_name(f".trash-{os.getpid()}-{secrets.token_hex(4)}")
+        trash = path.with_name(f".trash-{os.getpid()}@{HOST_TAG}-{secrets.token_hex(4)}")
         try:
             os.rename(path, trash)  # out of the way atomically, then delete
         except OSError:
@@ -225,7 +226,7 @@ class ContentCache:
         free = shutil.disk_usage(kind_dir).free
         if free < need + FREE_SPACE_MARGIN:
             raise ResourceError(self._full_message(kind, need, free))
-        tmp = kind_dir / f".tmp-{os.getpid()}-{threading.get_ident()}-{secrets.token_hex(4)}"
+        tmp = kind_dir / f".tmp-{os.getpid()}@{HOST_TAG}-{threading.get_ident():x}{secrets.token_hex(4)}"
         try:
             tmp.mkdir()
             listing = {}
@@ -337,6 +338,31 @@ class ContentCache:
 
     def size(self) -> int:
         return sum(f.stat().st_size for f in self.root.rglob("*") if f.is_file())
+
+    def tidy(self, *, max_age: float | None = None) -> list[str]:
+        """Remove entries being written or discarded by processes that are dead (this host: no such
+        process; other hosts: older than usdface.shot_commit.TEMPORARY_MAX_AGE); returns their names."""
+        import time
+
+        from ..shot_commit import TEMPORARY_MAX_AGE
+
+        max_age = TEMPORARY_MAX_AGE if max_age is None else max_age
+        removed = []
+        for kind_dir in (p for p in self.root.iterdir() if p.is_dir() and p.name != "locks"):
+            for p in kind_dir.iterdir():
+                if not p.name.startswith((".tmp-", ".trash-")):
+                    continue
+                try:
+                    mtime = p.lstat().st_mtime
+                except OSError:
+                    continue
+                dead = owner_is_dead(p.name, mtime)
+                if dead or (dead is None and time.time() - mtime > max_age):
+                    shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+                    removed.append(f"{kind_dir.name}/{p.name}")
+        if removed:
+            log.info("cache %s: removed %d entries left half-written by stopped processes", self.root, len(removed))
+        return removed
 
 
 def _in_dask_worker() -> bool:

@@ -29,7 +29,6 @@ the same parser as the command line, so a manifest shot means what the command w
 """
 from __future__ import annotations
 
-import argparse
 import glob
 import os
 import re
@@ -39,14 +38,9 @@ from pathlib import Path
 
 from ..errors import FormatError, InputError, OptionError
 
-#: capture suffixes that need `usdface track` first
-VIDEO_SUFFIXES = (".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
 #: processors a shot may list
 PROCESSORS = ("track", "run", "check")
 BATCH_KEYS = {"cache": (str, bool), "summary": (str,), "workers": (int,), "scheduler": (str,)}
-#: `usdface run` options a manifest does not take (the run pipeline does not use them, or they
-#: are the batch's business)
-_EXCLUDED = {"help", "json", "verbose", "quiet", "no_stabilize", "output"}
 _SHOT_ONLY = {"mesh", "capture", "output", "processors"}
 
 
@@ -66,7 +60,9 @@ class Shot:
 
     @property
     def is_video(self) -> bool:
-        return Path(self.capture).suffix.lower() in VIDEO_SUFFIXES
+        from ..processors.run import is_video
+
+        return is_video(self.capture)
 
 
 @dataclass
@@ -80,33 +76,12 @@ class Manifest:
     problems: list = field(default_factory=list)
 
 
-def _run_parser() -> argparse.ArgumentParser:
-    from ..cli import build_parser
-
-    parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    run = sub.choices["run"]
-
-    def error(message):
-        raise OptionError(message)
-
-    run.error = error
-    for action in run._actions:  # nested groups share the parser's error()
-        pass
-    return run
-
-
 def shot_keys() -> dict:
-    """{manifest key: argparse action} for every `usdface run` option a manifest takes."""
-    keys = {}
-    for action in _run_parser()._actions:
-        longs = [o for o in action.option_strings if o.startswith("--")]
-        if not longs:
-            continue
-        key = longs[0][2:].replace("-", "_")
-        if key not in _EXCLUDED:
-            keys[key] = action
-    return keys
+    """{manifest key: option field} for every `usdface run` option a manifest takes (the fields of
+    :class:`usdface.options.RunOptions`: a manifest key is the option's name)."""
+    from ..options import RunOptions, option_fields
+
+    return {f.name: f for f in option_fields(RunOptions)}
 
 
 def key_line(text: str, table: str, index: int | None, key: str) -> int | None:
@@ -227,7 +202,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
             for capture in captures:
                 names = {"mesh": Path(mesh).stem, "capture": Path(capture).stem}
                 try:
-                    output = str(_resolve(str(merged["output"]).format(**names), out_base))
+                    output = str(_output_path(str(merged["output"]).format(**names), out_base))
                     layout = None
                     if merged.get("layout") is not None:
                         found = _expand(str(merged["layout"]).format(**names), base, "layout", label, missing)
@@ -238,7 +213,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                 options = _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems)
                 if options is None:
                     continue
-                if options.get("stiffness") and not _is_number(options["stiffness"]):
+                if isinstance(options.get("stiffness"), str):  # a JSON file of widths
                     st = _resolve(options["stiffness"], base)
                     if not st.is_file():
                         missing.append(f"{label}: stiffness {st}")
@@ -248,107 +223,70 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                     if not sd.is_file():
                         missing.append(f"{label}: seeds {sd}")
                     options["seeds"] = str(sd)
+                loc = where(*(("shots", i) if "output" in entry else ("defaults", None)), "output")
+                problem = _outside(output, out_root, out_base, f"{loc}: output = {merged['output']!r}")
+                if problem:
+                    problems.append(problem)
+                    continue
                 name = f"{names['mesh']}/{names['capture']}"
                 shots.append(Shot(name=name, mesh=mesh, capture=capture, output=output, options=options,
                                   processors=tuple(p for p in PROCESSORS if p in processors), layout=layout,
                                   entry=i, line=line))
+    cache = batch.get("cache", ".usdface-cache")
+    cache_path = None if cache is False else str(_output_path(cache, out_base))
+    summary_path = str(_output_path(batch.get("summary", "usdface-batch-summary.json"), out_base))
+    for key, value in (("cache", cache_path), ("summary", summary_path)):
+        problem = _outside(value, out_root, out_base, f"{where('batch', None, key)}: {key} = {batch.get(key)!r}")
+        if value is not None and problem:
+            problems.append(problem)
     missing = list(dict.fromkeys(missing))
+    problems = list(dict.fromkeys(problems))  # a shot entry expands to many shots: report once
     if missing and check_files:
         problems.insert(0, f"{len(missing)} input file(s) not found:\n  " + "\n  ".join(missing))
     if problems:
         raise InputError(f"manifest {path}:\n" + "\n".join(problems) if len(problems) > 1 or missing
                          else problems[0])
-    seen = {}
-    clashes = []
-    for s in shots:
-        if s.output in seen:
-            clashes.append(f"{s.name} and {seen[s.output]} both write {s.output}")
-        seen[s.output] = s.name
+    clashes = _clashes(shots, cache_path, summary_path)
     if clashes:
         raise InputError(f"manifest {path}: shots share an output folder (name outputs with {{mesh}} and "
                          "{capture}):\n  " + "\n  ".join(clashes))
+    overwrites = _inputs_overwritten(shots)
+    if overwrites:
+        raise InputError(f"manifest {path}: a shot would overwrite its own inputs:\n  " + "\n  ".join(overwrites))
     unwritable = _unwritable([s.output for s in shots])
-    cache = batch.get("cache", ".usdface-cache")
-    cache_path = None if cache is False else str(_resolve(cache, out_base))
     if cache_path:
         unwritable += _unwritable([cache_path], what="cache folder")
     if unwritable:
         raise InputError(f"manifest {path}: cannot write:\n  " + "\n  ".join(unwritable))
-    return Manifest(path=path, shots=shots, cache=cache_path,
-                    summary=str(_resolve(batch.get("summary", "usdface-batch-summary.json"), out_base)),
+    return Manifest(path=path, shots=shots, cache=cache_path, summary=summary_path,
                     workers=batch.get("workers"), scheduler=batch.get("scheduler"))
 
 
 def _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems) -> dict | None:
-    """Turn manifest values into `usdface run` arguments and parse them with the CLI's parser."""
-    argv = ["--mesh", mesh, "--capture", capture, "-o", output]
-    if layout is not None:
-        argv += ["--layout", layout]
-    for key, value in merged.items():
-        if key in _SHOT_ONLY or key == "layout":
-            continue
-        action = allowed[key]
-        opt = next(o for o in action.option_strings if o.startswith("--"))
-        table, idx = ("shots", i) if key in entry else ("defaults", None)
-        if key == "stabilize":
-            if value is False:
-                argv.append("--no-stabilize")
-            elif value is True or value == "auto":
-                argv += ["--stabilize", "auto"]
-            elif isinstance(value, list):
-                argv += ["--stabilize", ",".join(map(str, value))]
-            else:
-                argv += ["--stabilize", str(value)]
-            continue
-        if action.nargs == "?" and isinstance(value, bool):  # e.g. --auto [N]: true = the bare flag
-            if value:
-                argv.append(opt)
-            continue
-        if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
-            if not isinstance(value, bool):
-                problems.append(f"{where(table, idx, key)}: {key} = {value!r}: expected true or false")
-                return None
-            if value:
-                argv.append(opt)
-            continue
-        if isinstance(value, list):
-            argv += [opt] + [str(v) for v in value]
-        elif isinstance(value, bool) or isinstance(value, dict):
-            problems.append(f"{where(table, idx, key)}: {key} = {value!r}: expected a value for {opt}")
-            return None
-        else:
-            argv += [opt, str(value)]
+    """The shot's :class:`RunOptions` as a plain dict (it travels to workers), checked by the
+    options object itself, as the command line's values are."""
+    from ..options import RunOptions
+
+    values = {k: v for k, v in merged.items() if k not in _SHOT_ONLY}
+    values["layout"] = layout
     try:
-        args = _run_parser().parse_args(argv)
+        options = RunOptions.from_mapping(values, what="shot")
     except OptionError as exc:
         culprit = _culprit(str(exc), merged)
         loc = where(*(("shots", i) if culprit in entry else ("defaults", None)), culprit) if culprit else \
             f"shot entry {i + 1}"
         problems.append(f"{loc}: {exc}")
         return None
-    from ..cli import _neutral_arg, _stabilize_arg
-
-    try:
-        neutral = _neutral_arg(args.neutral)
-    except Exception as exc:  # noqa: BLE001 - UsdFaceError with the option named
-        problems.append(f"{where('shots', i, 'neutral')}: {exc}")
-        return None
-    return dict(layout=args.layout, auto=args.auto, method=args.method, backend=args.backend, rbf=args.rbf,
-                kernel=args.kernel, stiffness=args.stiffness, regularization=args.regularization,
-                polynomial=args.polynomial, retarget=args.retarget, mesh_units=args.mesh_units, units=args.units,
-                rate=args.rate, up_axis=args.up_axis, stabilize=_stabilize_arg(args.stabilize),
-                fill_gaps=args.fill_gaps, filter=args.filter, cutoff=args.cutoff,
-                trim=list(args.trim) if args.trim else None, neutral=neutral, region_radius_cm=args.region_radius,
-                sigma_cm=args.sigma, threshold=args.threshold, pin_border=args.pin_border,
-                components=args.components, output=args.output_kind, seeds=args.seeds,
-                radius=list(args.radius), max_influences=args.max_influences, resample=args.resample,
-                start_frame=args.start_frame)
+    return options.to_dict()
 
 
 def _culprit(message: str, merged: dict) -> str | None:
-    m = re.search(r"--([a-z][a-z0-9-]*)", message)
+    """The manifest key an option error is about (the error names the command-line flag)."""
+    m = re.search(r"(--[a-z][a-z0-9-]*)", message)
     if m:
-        key = m.group(1).replace("-", "_")
+        flags = {f.metadata["flag"]: name for name, f in shot_keys().items()}
+        flags.update({f.metadata["negate"]: name for name, f in shot_keys().items() if f.metadata["negate"]})
+        key = flags.get(m.group(1))
         return key if key in merged else None
     return None
 
@@ -375,7 +313,57 @@ def _is_number(v) -> bool:
 
 def _resolve(p, base: Path) -> Path:
     p = Path(os.path.expanduser(str(p)))
-    return p if p.is_absolute() else base / p
+    return Path(os.path.normpath(p if p.is_absolute() else base / p))
+
+
+def _output_path(p, base: Path) -> Path:
+    """Where an output really goes: absolute, ``..`` folded, symbolic links followed, so one folder
+    has one name (``x/../same`` is ``same``)."""
+    return Path(os.path.realpath(_resolve(p, base)))
+
+
+def _outside(path, out_root, out_base: Path, what: str) -> str | None:
+    """The problem when ``--out-root`` is given and ``path`` resolves outside it (else None)."""
+    if out_root is None or path is None:
+        return None
+    root = Path(os.path.realpath(out_base))
+    p = Path(path)
+    if p == root or root in p.parents:
+        return None
+    return (f"{what} resolves to {p}, outside --out-root {root}; with --out-root, outputs, the cache and the "
+            "summary stay inside it")
+
+
+def _clashes(shots, cache_path, summary_path) -> list[str]:
+    """Shots writing one folder, or a shot folder that holds (or is inside) the cache or the summary."""
+    clashes, seen = [], {}
+    for s in shots:
+        if s.output in seen:
+            clashes.append(f"{s.name} and {seen[s.output]} both write {s.output}")
+        seen[s.output] = s.name
+    for s in shots:
+        out = Path(s.output)
+        if cache_path and (Path(cache_path) == out or out in Path(cache_path).parents or Path(cache_path) in out.parents):
+            clashes.append(f"{s.name} writes {out}, which overlaps the cache folder {cache_path}")
+        if Path(summary_path).parent == out:
+            clashes.append(f"{s.name} writes {out}, the folder of the batch summary {summary_path}")
+    return clashes
+
+
+def _inputs_overwritten(shots) -> list[str]:
+    """Shots whose output files (what `usdface run` writes into their folder) are their inputs."""
+    from ..fileutil import same_file_problems
+    from ..processors.run import is_video, output_files
+
+    found = []
+    for s in shots:
+        files = output_files(s.options.get("output_kind") or ("points",), video=is_video(s.capture))
+        stiffness = s.options.get("stiffness")
+        inputs = {"mesh": s.mesh, "capture": s.capture, "layout": s.layout, "seeds": s.options.get("seeds"),
+                  "stiffness": stiffness if isinstance(stiffness, str) and os.path.isfile(stiffness) else None}
+        outputs = [("output", Path(s.output))] + [("output", Path(s.output) / f) for f in files]
+        found += [f"{s.name}: {p}" for p in same_file_problems(outputs, inputs)]
+    return found
 
 
 def _expand(pattern, base: Path, what: str, label: str, missing: list) -> list[str]:

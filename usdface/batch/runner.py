@@ -17,13 +17,18 @@ import traceback
 from pathlib import Path
 
 from .. import __version__
-from ..errors import OptionError, UsdFaceError
+from ..errors import EnvironmentFault, OptionError, UsdFaceError
 from .manifest import Manifest, Shot
 
 log = logging.getLogger("usdface")
 
-#: how long a client waits for a scheduler before giving up (seconds)
-CONNECT_TIMEOUT = 5.0
+#: how long a client waits for a scheduler's TCP connection (seconds)
+CONNECT_TIMEOUT = 3.0
+#: the whole check that --scheduler is a Dask scheduler (connect, handshake, identity) stops after
+#: this many seconds, so a wrong address fails within 10 s of starting the command
+PROBE_TIMEOUT = 4.0
+#: how long the client then waits for the scheduler it probed (seconds)
+CLIENT_TIMEOUT = 10.0
 #: thread variables fixed in every worker (before numpy loads where we start the process)
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
               "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1", "NUMEXPR_NUM_THREADS": "1"}
@@ -45,10 +50,11 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
 
                 cache = ContentCache(cache_root)
             capture = shot.capture  # `run` tracks and lifts video captures itself
+            from ..options import RunOptions
             from ..processors.run import run
 
             with step_clock() as clock:
-                summary = run(shot.mesh, capture, shot.output, cache=cache, **shot.options)
+                summary = run(shot.mesh, capture, shot.output, RunOptions.from_mapping(shot.options), cache=cache)
             rec["steps"] = {k: clock.get(k, v.get("seconds")) for k, v in summary["steps"].items()}
             rec["steps"]["other"] = round(max(0.0, time.perf_counter() - started - sum(
                 x for x in rec["steps"].values() if isinstance(x, (int, float)))), 3)
@@ -68,8 +74,13 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
         rec["error"] = str(exc)
         rec["status"] = "unsupported" if getattr(exc, "unsupported", False) else "failed"
     except Exception as exc:  # noqa: BLE001 - a bug or a library error must not stop the batch
-        rec["error"] = f"{type(exc).__name__}: {exc}"
-        rec["traceback"] = traceback.format_exc(limit=8)
+        from ..fileutil import describe_exception
+
+        # file system, memory and USD errors: one line naming the file and the cause; a bug keeps
+        # its traceback in the summary for the report
+        rec["error"] = describe_exception(exc)
+        if not isinstance(exc, (OSError, MemoryError)) and not type(exc).__module__.startswith("pxr"):
+            rec["traceback"] = traceback.format_exc(limit=8)
     rec["seconds"] = round(time.perf_counter() - started, 3)
     return rec
 
@@ -173,36 +184,47 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     version, options, input names and sha256); and each layer's provenance names the usdface
     version and inputs whose sha256 equal the files in OUTDIR (the chain was not edited since).
     """
-    from ..processors.run import OUTPUT_FILES, run_options, run_provenance
+    from ..options import RunOptions
+    from ..processors.run import output_files, run_provenance
+    from ..shot_commit import read_shot_record, verify_shot
 
     out = Path(shot.output)
-    missing = [f for f in OUTPUT_FILES if not (out / f).is_file()]
-    if missing:
-        return False, f"missing {', '.join(missing)}"
+    opts = RunOptions.from_mapping(shot.options)
     try:
         summary = json.loads((out / "summary.json").read_text())
     except (OSError, ValueError):
+        summary = None
+    files = summary.get("files") if isinstance(summary, dict) and summary.get("files") else \
+        output_files(opts.output_kind, video=shot.is_video)
+    missing = [f for f in files if not (out / f).is_file()]
+    if missing:
+        return False, f"missing {', '.join(missing)}"
+    if summary is None:
         return False, "summary.json unreadable"
-    opts = {k: v for k, v in shot.options.items()}
+    problems = verify_shot(out / "shot.usda")
+    if problems:
+        return False, f"mixed or incomplete shot: {problems[0]}"
+    recorded = read_shot_record(out / "shot.usda") is not None
     capture = shot.capture
     if not Path(capture).is_file():
         return False, "capture missing"
-    expected = run_provenance(shot.mesh, capture, run_options(**opts), layout=opts.get("layout"),
-                              stiffness=opts.get("stiffness"))
+    expected = run_provenance(shot.mesh, capture, opts)
     if summary.get("provenance") != expected:
         old = summary.get("provenance") or {}
         what = [k for k in ("usdfaceVersion", "options", "inputs") if old.get(k) != expected.get(k)]
         return False, f"provenance differs ({', '.join(what) or 'absent'})"
+    if recorded:  # every file is the one committed with the shot, and a commit holds one run's files
+        return True, "outputs current"
     from ..usd.layers import file_digest
 
     digests = {}
-    for name in ("mesh.usdc", "capture.usdc", "binding.usda", "analysis.usdc", "anim.usdc"):
+    for name in [f for f in files if f.endswith((".usdc", ".usda")) and not f.startswith("shot")]:
         prov = _layer_provenance(out / name)
         if prov is None or prov.get("usdfaceVersion") != __version__:
             return False, f"{name}: provenance absent or from another usdface version"
         for role, rec in json.loads(prov.get("inputs", "{}")).items():
             f = out / rec["file"]
-            if f.name in OUTPUT_FILES:
+            if f.name in files:
                 if f.name not in digests:
                     digests[f.name] = file_digest(f)
                 if digests[f.name] != rec["sha256"]:
@@ -211,14 +233,9 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
 
 
 def _layer_provenance(path: Path) -> dict | None:
-    from pxr import Sdf
+    from ..usd.layers import layer_provenance
 
-    layer = Sdf.Layer.OpenAsAnonymous(str(path), metadataOnly=True) if path.suffix == ".usdc" else \
-        Sdf.Layer.FindOrOpen(str(path))
-    if layer is None:
-        return None
-    data = dict(layer.customLayerData)
-    return dict(data["usdface"]) if "usdface" in data else None
+    return layer_provenance(path)
 
 
 # -- the batch ------------------------------------------------------------------------------------
@@ -246,15 +263,23 @@ def run_batch(manifest: Manifest, *, workers: int | None = None, scheduler: str 
     started = time.perf_counter()
     t0 = time.time()
     scheduler = scheduler or manifest.scheduler
+    if scheduler:  # a wrong --scheduler fails now, within seconds, before any other work
+        if not scheduler.startswith(("tcp://", "tls://", "ws://", "wss://", "inproc://", "ucx://")):
+            raise OptionError(f"--scheduler {scheduler}: expected an address like tcp://HOST:8786")
+        probe_scheduler(scheduler)
     cache_root = manifest.cache if cache is None else (None if cache is False else str(Path(cache).resolve()))
     if cache_root is not None:
         from .cache import ContentCache
 
-        ContentCache(cache_root)  # create it / fail early with a clear message
+        ContentCache(cache_root).tidy()  # create it / fail early; remove dead writers' temporaries
     summary_path = Path(summary_path or manifest.summary)
     records: dict[str, dict] = {}
     todo: list[Shot] = []
+    from ..shot_commit import tidy_unlocked_folder
+
     for shot in manifest.shots:
+        # complete interrupted commits and remove dead runs' temporaries, skipped shots' too
+        tidy_unlocked_folder(shot.output)
         if resume and not force:
             current, reason = shot_is_current(shot)
             if current:
@@ -312,16 +337,13 @@ def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -
     for name in ("distributed", "bokeh", "tornado"):
         logging.getLogger(name).setLevel(max(level, logging.WARNING) if level > logging.DEBUG else logging.INFO)
     cluster = None
-    if scheduler:
-        if not scheduler.startswith(("tcp://", "tls://", "ws://", "wss://", "inproc://", "ucx://")):
-            raise OptionError(f"--scheduler {scheduler}: expected an address like tcp://HOST:8786")
+    if scheduler:  # run_batch checked it is a Dask scheduler (probe_scheduler)
         try:
-            with dask.config.set({"distributed.comm.timeouts.connect": f"{CONNECT_TIMEOUT}s"}):
-                client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s", set_as_default=False)
+            with dask.config.set({"distributed.comm.timeouts.connect": f"{CLIENT_TIMEOUT}s"}):
+                client = Client(scheduler, timeout=f"{CLIENT_TIMEOUT}s", set_as_default=False)
         except (OSError, TimeoutError) as exc:
-            raise OptionError(f"--scheduler {scheduler}: no Dask scheduler answered within {CONNECT_TIMEOUT:g} s "
-                              f"({type(exc).__name__}); start one with `dask scheduler` and workers with "
-                              f"`dask worker {scheduler}`, or leave out --scheduler to run on this machine") from None
+            raise EnvironmentFault(f"--scheduler {scheduler}: the Dask scheduler stopped answering within "
+                                   f"{CLIENT_TIMEOUT:g} s ({type(exc).__name__})") from None
         info.update(mode="scheduler", scheduler=scheduler)
     else:
         n = workers or min(os.cpu_count() or 1, len(todo))
@@ -379,6 +401,55 @@ def shot_cost(shot: Shot) -> float:
     trim = shot.options.get("trim")
     frames = float(trim[1] - trim[0]) if isinstance(trim, (list, tuple)) and len(trim) == 2 else size(shot.capture)
     return size(shot.mesh) * max(frames, 1.0)
+
+
+def probe_scheduler(address: str, *, timeout: float = PROBE_TIMEOUT) -> dict:
+    """Check that ``address`` is a Dask scheduler within ``timeout`` seconds; returns its identity.
+
+    A TCP connection first (a port where nothing listens fails at once), then Dask's handshake and
+    an identity request under one deadline: a server speaking another protocol (HTTP: the
+    dashboard's port 8787, SSH, ...) or one that never answers fails with a clear
+    :class:`~usdface.errors.EnvironmentFault` instead of hanging.
+    """
+    import asyncio
+    import socket
+
+    from distributed.comm import connect
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    hint = (f"start one with `dask scheduler` (it listens on 8786 by default; 8787 is its dashboard) and workers "
+            f"with `dask worker {address}`, or leave out --scheduler to run on this machine")
+    started = time.monotonic()
+    scheme, loc = parse_address(address)
+    if scheme in ("tcp", "tls"):
+        try:
+            host, port = parse_host_port(loc)
+            socket.create_connection((host, port), timeout=min(CONNECT_TIMEOUT, timeout)).close()
+        except (OSError, ValueError, TypeError) as exc:
+            why = getattr(exc, "strerror", None) or ("timed out" if isinstance(exc, TimeoutError) else str(exc))
+            raise EnvironmentFault(f"--scheduler {address}: nothing listens there ({why}); {hint}") from None
+
+    async def identity():
+        comm = await connect(address, timeout=max(0.5, timeout - (time.monotonic() - started)))
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    not_dask = f"--scheduler {address}: the server there does not answer as a Dask scheduler"
+    try:
+        answer = asyncio.run(asyncio.wait_for(identity(), max(0.5, timeout - (time.monotonic() - started))))
+    except (asyncio.TimeoutError, TimeoutError):
+        raise EnvironmentFault(f"{not_dask} within {timeout:g} s (a web server, such as the dashboard on 8787, or "
+                               f"another service); {hint}") from None
+    except Exception:  # noqa: BLE001 - closed connection, garbage frames: not Dask's protocol
+        raise EnvironmentFault(f"{not_dask} (it closed the connection or replied in another protocol); "
+                               f"{hint}") from None
+    if not isinstance(answer, dict) or answer.get("type") != "Scheduler":
+        kind = answer.get("type") if isinstance(answer, dict) else type(answer).__name__
+        raise EnvironmentFault(f"--scheduler {address}: the server is a Dask {kind}, not a scheduler; {hint}")
+    return answer
 
 
 def _takes_n_workers(client) -> bool:
@@ -464,7 +535,11 @@ def step_times(steps) -> str:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n")
-    os.replace(tmp, path)
+    from ..fileutil import atomic_write, write_error
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise write_error(path, exc) from None
+    with atomic_write(path) as f:
+        f.write(json.dumps(data, indent=2, default=str) + "\n")

@@ -104,6 +104,8 @@ class GapReport:
             "unfilled_gaps": len(self.unfilled),
             "unfilled_samples": self.n_unfilled_samples,
             "unfilled": [[g.marker, g.start, g.stop, g.method] for g in self.unfilled],
+            # every filled gap (marker, first frame, end frame exclusive, method): the QC report plots them
+            "filled": [[g.marker, g.start, g.stop, g.method] for g in self.filled],
         }
 
 

@@ -46,3 +46,26 @@ def marker_displacements(capture: Capture, names, transform: np.ndarray) -> np.n
             f"{capture.neutral_frame}; fill gaps (--fill-gaps N) or choose another neutral frame (--neutral)"
         )
     return (pos - neutral[None]) @ np.asarray(transform, dtype=np.float64).T
+
+
+def mesh_head_motion(capture: Capture, capture_to_mesh: np.ndarray) -> np.ndarray | None:
+    """The head motion removed by stabilisation, as rigid motions of the face in mesh space.
+
+    ``H_mesh(f) = C H(n)^-1 H(f) C^-1`` with H the capture's head motion (capture space), n the
+    neutral frame and C the binding's capture-to-mesh similarity: the actor's head rotation about
+    the (mapped) head, the translation scaled like the face, identity at the neutral frame (where
+    the face is at its rest pose). The similarity's scale cancels in the rotation, so H_mesh is
+    rigid.
+
+    Returns
+    -------
+    ndarray (F, 4, 4) float64 (column vectors), or None when the capture was not stabilised.
+    """
+    if capture.head_motion is None:
+        return None
+    h = np.asarray(capture.head_motion, dtype=np.float64)
+    rel = np.einsum("ij,fjk->fik", np.linalg.inv(h[capture.neutral_frame]), h)
+    c = np.asarray(capture_to_mesh, dtype=np.float64)
+    out = np.einsum("ij,fjk,kl->fil", c, rel, np.linalg.inv(c))
+    out[:, 3] = (0.0, 0.0, 0.0, 1.0)  # exact affine rows (no rounding into the projective part)
+    return out

@@ -99,14 +99,33 @@ def offset(capture: Capture, *, start_frame: int) -> Capture:
     return capture.replace(step=step, start_frame=int(start_frame))
 
 
-def _new_grid(capture, rate):
-    """New integer time codes covering the old time span, and their positions in old frame units."""
+def _grid_range(capture, rate):
+    """First and last integer time code of the new rate inside the old time span."""
     r0 = capture.rate
     t0 = capture.start_frame / r0
     t1 = (capture.start_frame + capture.n_frames - 1) / r0
     eps = 1e-9
-    k0 = math.ceil(t0 * rate - eps)
-    k1 = math.floor(t1 * rate + eps)
+    return math.ceil(t0 * rate - eps), math.floor(t1 * rate + eps)
+
+
+#: bytes per resampled frame and marker at the peak of :func:`resample` (float64 positions: the
+#: result, the interpolated block and the spline's evaluation) and per frame (grid, masks, head motion)
+_RESAMPLE_BYTES_PER_SAMPLE = 3 * 3 * 8
+_RESAMPLE_BYTES_PER_FRAME = 40 + 4 * 16 * 8
+
+
+def resample_memory(capture: Capture, rate: float) -> tuple[int, int]:
+    """(frames, bytes): the frame count of ``capture`` resampled to ``rate`` and the memory
+    :func:`resample` needs at its peak (an estimate), computed without allocating anything."""
+    k0, k1 = _grid_range(capture, float(rate))
+    frames = max(0, k1 - k0 + 1)
+    return frames, frames * (capture.n_markers * _RESAMPLE_BYTES_PER_SAMPLE + _RESAMPLE_BYTES_PER_FRAME)
+
+
+def _new_grid(capture, rate):
+    """New integer time codes covering the old time span, and their positions in old frame units."""
+    r0 = capture.rate
+    k0, k1 = _grid_range(capture, rate)
     codes = np.arange(k0, k1 + 1)
     u = codes * (r0 / rate) - capture.start_frame  # fractional old frame index
     u = np.where(np.abs(u - np.round(u)) < 1e-9, np.round(u), u)
@@ -186,6 +205,13 @@ def resample(capture: Capture, *, rate: float, method: str = "cubic") -> Capture
     if not (ok and np.isfinite(rate) and rate > 0):
         raise OptionError(f"resample: rate must be a positive number of Hz; got {rate!r}")
     rate = float(rate)
+    frames, need = resample_memory(capture, rate)
+    if frames > capture.n_frames:  # refuse an impossible rate with its size, before allocating
+        from ..resources import check_memory
+
+        check_memory(need, what=f"resample: {capture.n_frames} frames at {capture.rate:g} Hz to {rate:g} Hz make "
+                                f"{frames:,} frames x {capture.n_markers} markers, which",
+                     hint="choose a rate near the capture's (capture rates are 24-1000 Hz)")
     k0, codes, u = _new_grid(capture, rate)
     if codes.size == 0:
         raise OptionError(

@@ -9,12 +9,13 @@ All distances are in mesh units.
 """
 from __future__ import annotations
 
-import os
 import warnings
 
 import numpy as np
 
 from ..errors import InputError, OptionError, ResourceError
+from ..fileutil import format_bytes
+from ..resources import available_memory  # noqa: F401  (re-exported)
 
 __all__ = [
     "DistanceWarning",
@@ -42,36 +43,13 @@ def warn(message: str) -> None:
 # memory
 # ----------------------------------------------------------------------------------------------
 
-def available_memory() -> int | None:
-    """Bytes of memory available to this process now, or None when unknown.
-
-    Reads ``MemAvailable`` from ``/proc/meminfo`` (Linux); falls back to
-    ``os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")``.
-    """
-    try:
-        with open("/proc/meminfo", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
 def fmt_bytes(n: float) -> str:
     """Bytes as a short human-readable string (``"1.2 GB"``, decimal units)."""
     return _fmt_bytes(n)
 
 
 def _fmt_bytes(n: float) -> str:
-    for unit in ("B", "KB", "MB", "GB", "TB"):
-        if abs(n) < 1000 or unit == "TB":
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
-        n /= 1000.0
-    return f"{n:.1f} TB"  # pragma: no cover
+    return format_bytes(n).replace("kB", "KB")
 
 
 def check_matrix_memory(n_rows: int, n_cols: int, dtype=np.float64, *, what: str = "distance matrix",

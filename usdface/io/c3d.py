@@ -2,7 +2,10 @@
 
 What is read: the 3D points (``POINT`` group), named by ``POINT:LABELS`` (and ``LABELS2``... for
 more than 255 points), at ``POINT:RATE`` Hz, in ``POINT:UNITS`` (``mm`` usually). A sample whose
-residual is negative (the C3D "invalid" flag) or whose coordinates are NaN is invalid (NaN).
+residual is negative (the C3D "invalid" flag) or whose coordinates are NaN is invalid (NaN). So is
+a sample at exactly (0, 0, 0), the way many exporters write a gap without setting the residual
+(``keep_zeros=True`` keeps such samples as positions); the read step of the history counts them
+(``zero_samples``, ``zero_markers``) so the import reports them.
 Analog channels, force plates and events are ignored. The capture's ``start_frame`` is the
 header's first frame, 0-based (C3D frame 1 is time code 0).
 
@@ -42,7 +45,8 @@ def _ezc3d():
     return ezc3d
 
 
-def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_axis: str | None = "Z") -> Capture:
+def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_axis: str | None = "Z",
+             keep_zeros: bool = False) -> Capture:
     """Read the 3D marker points of a ``.c3d`` file.
 
     Parameters
@@ -55,12 +59,16 @@ def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_ax
         Needed only when ``POINT:RATE`` is missing; must agree with it otherwise (Hz).
     up_axis : {"Z", "Y"}, optional
         Up axis of the file's data; default Z (the C3D convention), rotated to Y-up.
+    keep_zeros : bool
+        Keep samples at exactly (0, 0, 0) as positions (default False: they are gaps).
 
     Returns
     -------
     Capture
-        positions (F, M, 3) float64 in the file's units, Y-up, NaN where the residual is negative;
-        history ({"step": "read", "format": "c3d", "up_axis": ...},).
+        positions (F, M, 3) float64 in the file's units, Y-up, NaN where the residual is negative
+        or (unless ``keep_zeros``) the sample is exactly (0, 0, 0); history ({"step": "read",
+        "format": "c3d", "up_axis": ...},), plus ``"zero_samples": n, "zero_markers": {name: n}``
+        when zeros were read as gaps.
 
     Raises
     ------
@@ -112,13 +120,20 @@ def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_ax
     invalid = ~np.isfinite(positions).all(axis=2)
     if residuals.shape == (1, n_markers, n_frames):
         invalid |= residuals[0].T < 0
+    zeros = ~invalid & (positions == 0.0).all(axis=2)
+    if not keep_zeros:
+        invalid |= zeros
     positions[invalid] = np.nan
     if up == "Z":
         positions = z_up_to_y_up(positions)
+    step = {"step": "read", "format": "c3d", "up_axis": up}
+    if zeros.any() and not keep_zeros:
+        step["zero_samples"] = int(zeros.sum())
+        step["zero_markers"] = {labels[m]: int(n) for m, n in enumerate(zeros.sum(axis=0)) if n}
     capture = Capture(
         names=tuple(labels), positions=positions, rate=capture_rate, units=unit,
         start_frame=int(c3d["header"]["points"]["first_frame"]), source=source,
-        history=({"step": "read", "format": "c3d", "up_axis": up},),
+        history=(step,),
     )
     capture.check_not_all_invalid()
     return capture

@@ -59,7 +59,7 @@ def _format_for(path, suffixes) -> tuple:
 
 
 def read_capture(path, *, units: str | None = None, rate: float | None = None,
-                 up_axis: str | None = None) -> Capture:
+                 up_axis: str | None = None, keep_zeros: bool = False) -> Capture:
     """Read a marker capture file, choosing the reader by suffix.
 
     Parameters
@@ -77,6 +77,9 @@ def read_capture(path, *, units: str | None = None, rate: float | None = None,
     up_axis : {"Y", "Z"}, optional
         Up axis of the SOURCE data; None takes the format's convention (Z for C3D, Y for the
         others). Z-up data is rotated to Y-up: (x, y, z) -> (x, z, -y).
+    keep_zeros : bool
+        C3D only: keep samples at exactly (0, 0, 0) as positions (default: they are gaps, the
+        usual C3D gap code; see :mod:`usdface.io.c3d`).
 
     Returns
     -------
@@ -102,6 +105,8 @@ def read_capture(path, *, units: str | None = None, rate: float | None = None,
         capture = reader(path, units=units, rate=rate)
         if up == "Z":
             capture = capture.replace(positions=z_up_to_y_up(capture.positions))
+    elif module_name.endswith(".c3d"):
+        capture = reader(path, units=units, rate=rate, up_axis=up or default_up, keep_zeros=keep_zeros)
     else:
         capture = reader(path, units=units, rate=rate, up_axis=up or default_up)
     return capture

@@ -35,7 +35,11 @@ Robustness
 Statements must end with ``;`` and the file with Maya's ``// End of <name>.ma`` line; key blocks
 (``setAttr ".ktv[a:b]" t0 v0 t1 v1 ...``) must hold exactly their index range and the count
 declared by ``setAttr -s N ".ktv"``. A truncated or malformed file raises FormatError naming the
-file, line and curve instead of returning short data.
+file, line and curve instead of returning short data. So does a translate key that is not a
+position: not finite, or more than :data:`MAX_KEY_METERS` (1 km) from the origin (a value such
+as 9.9e30 would move the face by 1e31 cm); the message names the curve, the marker channel it
+drives, the key, its time and its line. Values that are positions but implausible ones (a spike
+of 50 cm) are judged later, by :mod:`usdface.capture.plausibility`.
 
 Speed
 -----
@@ -106,6 +110,9 @@ _UNSUPPORTED_ANCESTOR_ATTRS = {"rp": 0.0, "sp": 0.0, "rpt": 0.0, "spt": 0.0, "ra
 # Maya rotate orders (.ro): the axis applied first comes first
 _ROTATE_ORDERS = ("xyz", "yzx", "zxy", "xzy", "yxz", "zyx")
 _ON_GRID_TOLERANCE = 1e-3  # frames
+#: a translate key farther than this from the origin (metres) is not a position: the file is broken
+MAX_KEY_METERS = 1000.0
+_TOKEN = re.compile(r"\S+")
 
 
 @dataclass
@@ -219,6 +226,7 @@ def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None
                 channel_curves[(id(node), channel)] = curve
     curves = list({id(c): c for c in channel_curves.values()}.values())
     keys = _parse_keys(scene, curves)  # id(curve) -> (times in Maya time units, values)
+    _check_key_values(scene, curves, keys, channel_curves, unit)
 
     grid = _TimeGrid.fit(scene, keys, frames_per_second, rate)
     sampled = {cid: grid.sample(times, values) for cid, (times, values) in keys.items()}
@@ -571,6 +579,41 @@ def _parse_blocks_one_by_one(scene: _Scene, blocks: list) -> np.ndarray:
             )
         parts.append(values)
     return np.concatenate(parts) if parts else np.empty(0)
+
+
+def _check_key_values(scene: _Scene, curves: list, keys: dict, channel_curves: dict, unit: str) -> None:
+    """FormatError for a translate key that is not a position (not finite, beyond 1 km)."""
+    from ..units import METERS_PER_UNIT
+
+    limit = MAX_KEY_METERS / METERS_PER_UNIT[unit]
+    drives = {}
+    for (node_id, channel), curve in channel_curves.items():
+        node = next((n for n in scene.nodes if id(n) == node_id), None)
+        drives.setdefault(id(curve), f"{node.name}.{channel}" if node is not None else channel)
+    for curve in curves:
+        times, values = keys[id(curve)]
+        bad = np.flatnonzero(~(np.abs(values) <= limit))
+        if not bad.size:
+            continue
+        k = int(bad[0])
+        line = _key_line(scene, curve, k)
+        where = f" (line {line})" if line else ""
+        more = f"; {bad.size - 1} more such key(s) on this curve" if bad.size > 1 else ""
+        raise scene.error(None, f"curve {curve.name!r} (driving {drives.get(id(curve), 'a marker')}): key {k} at time "
+                                f"{times[k]:g}{where} has value {values[k]:g} {unit}, not a position (more than "
+                                f"{MAX_KEY_METERS:g} m from the origin){more}: the file is corrupt; fix or delete "
+                                "the key")
+
+
+def _key_line(scene: _Scene, curve: _Node, key: int) -> int | None:
+    """File line of key ``key``'s value in ``curve``'s key blocks."""
+    for first, last, start, end, _ in curve.key_blocks:
+        if first <= key <= last:
+            want = 2 * (key - first) + 1  # the value token of the pair
+            for i, m in enumerate(_TOKEN.finditer(scene.text, start, end)):
+                if i == want:
+                    return scene.line_of(m.start())
+    return None
 
 
 def _is_number(token: str) -> bool:

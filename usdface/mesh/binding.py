@@ -236,7 +236,9 @@ def bind_layout(
         In the capture's marker order, ``method="layout"``. ``residuals`` = distance (mesh units)
         from each layout position to its bound surface point (0 for vertices and points on the
         surface). ``capture_to_mesh`` = similarity (Umeyama) fitted from the neutral markers (capture
-        units) to the bound points; :func:`alignment_residuals` gives how well it fits.
+        units) to the bound points, setting aside markers more than 25% of the face's extent off
+        (:func:`usdface.mesh.judgement.robust_similarity`); :func:`alignment_residuals` gives how
+        well it fits.
 
     Raises
     ------
@@ -254,7 +256,15 @@ def bind_layout(
     unit_scale = _unit_scale(capture, mesh, retarget)
     target = layout.positions(mesh, capture.names)
     sp = project_to_surface(mesh, target, locator=locator)
-    rot, s, t = _fit_similarity(neutral * unit_scale, sp.points, what="layout binding")
+    # robust: a marker far from its layout point (judged by usdface.mesh.judgement) is set aside so
+    # that it does not drag the placement of the others
+    from .judgement import FIT_MARKER_FRACTION, extent, robust_similarity
+
+    try:
+        rot, s, t, _, _ = robust_similarity(neutral * unit_scale, sp.points,
+                                            limit=FIT_MARKER_FRACTION * extent(sp.points))
+    except ComputeError as e:
+        raise ComputeError(f"layout binding: {e}") from None
     return Binding(
         names=capture.names,
         face_indices=sp.face_indices,
@@ -267,13 +277,6 @@ def bind_layout(
         unit_scale=unit_scale,
         method="layout",
     )
-
-
-def _fit_similarity(src, dst, *, what: str, weights=None):
-    try:
-        return fit_rigid(src, dst, weights=weights, scale=True)
-    except ComputeError as e:
-        raise ComputeError(f"{what}: {e}") from None
 
 
 def alignment_residuals(binding: Binding, capture: Capture, mesh: FaceMesh) -> np.ndarray:

@@ -23,12 +23,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import write_text_atomic
 from ..errors import FormatError, InputError, MeshError, list_names
 from ..units import METERS_PER_UNIT, scale_between
 from .model import FaceMesh
@@ -275,18 +275,5 @@ def write_layout(path, layout: Layout, *, decimals: int | None = 6) -> Path:
     head = ",\n".join(f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in data.items() if k != "markers")
     text = "{\n" + head + ',\n  "markers": {\n' + ",\n".join("  " + ln for ln in lines) + "\n  }\n}\n"
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, (path.stat().st_mode & 0o777) if path.exists() else 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    write_text_atomic(path, text)
     return path

@@ -36,6 +36,10 @@ __all__ = [
     "non_manifold_vertices",
     "find_hole_regions",
     "mesh_topology",
+    "duplicate_faces",
+    "BorderSurface",
+    "border_surface",
+    "subset_faces",
 ]
 
 
@@ -164,9 +168,10 @@ def boundary_loops(mesh) -> list[np.ndarray]:
     list of ndarray, each shape (L,), int64
         Vertex loops (first vertex not repeated), each running along the boundary edges in the
         direction of their polygons' orientation, longest loop first. Each boundary edge is in
-        exactly one loop. At a vertex where several holes touch (a non-manifold boundary vertex)
-        the walk takes the outgoing boundary edges in turn, so touching holes may come out as one
-        loop through that vertex.
+        exactly one loop. At a vertex where several holes touch (a bow-tie: a non-manifold
+        boundary vertex) the walk passes the vertex more than once; it is cut there into simple
+        loops, so an eye touching the border comes out as its own loop, not as part of the
+        border's.
     """
     be = boundary_edges(mesh)
     if be.size == 0:
@@ -202,9 +207,32 @@ def boundary_loops(mesh) -> list[np.ndarray]:
                 break
             used[edge_s[k]] = True
             v = other_s[k]
-        loops.append(np.asarray(loop, dtype=np.int64))
+        loops.extend(np.asarray(c, dtype=np.int64) for c in _simple_cycles(loop))
     loops.sort(key=lambda a: -a.size)
     return loops
+
+
+def _simple_cycles(walk: list) -> list[list]:
+    """Cut a closed vertex walk (first vertex not repeated at the end) at every vertex it visits
+    twice, into simple cycles that keep the walk's direction."""
+    if len(set(walk)) == len(walk):
+        return [walk]
+    cycles, stack, where = [], [], {}
+    for v in walk + [walk[0]]:
+        if v in where:
+            i = where[v]
+            cycle = stack[i:]
+            if len(cycle) >= 2:
+                cycles.append(cycle)
+            for u in stack[i + 1:]:
+                where.pop(u, None)
+            del stack[i + 1:]
+        else:
+            where[v] = len(stack)
+            stack.append(v)
+    if len(stack) >= 2 and stack[0] != walk[0]:
+        cycles.append(stack)
+    return cycles
 
 
 def connected_components(mesh) -> tuple[int, np.ndarray]:
@@ -306,6 +334,166 @@ def _next_corner(t: EdgeTopology) -> np.ndarray:
     return nxt
 
 
+def duplicate_faces(mesh: FaceMesh) -> np.ndarray:
+    """Polygons that repeat an earlier polygon's vertices (in any order or winding).
+
+    Returns
+    -------
+    ndarray, shape (K,), int64
+        Indices of the repeats (the first occurrence is not listed).
+    """
+    counts, starts, idx = mesh.face_vertex_counts, mesh.face_starts, mesh.face_vertex_indices
+    width = int(counts.max())
+    keys = np.full((mesh.n_faces, width + 1), -1, dtype=np.int64)
+    keys[:, 0] = counts
+    col = np.arange(idx.size) - np.repeat(starts, counts)
+    keys[np.repeat(np.arange(mesh.n_faces), counts), col + 1] = idx
+    keys[:, 1:] = np.sort(np.where(keys[:, 1:] < 0, np.iinfo(np.int64).max, keys[:, 1:]), axis=1)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    dup = np.ones(mesh.n_faces, dtype=bool)
+    dup[first] = False
+    return np.flatnonzero(dup)
+
+
+#: a sheet attached to a larger one only through non-manifold edges or vertices is a fin (left out
+#: of border detection) when it has at most this fraction of the larger sheet's polygons
+FIN_FRACTION = 0.1
+
+
+@dataclass(frozen=True)
+class BorderSurface:
+    """The part of a mesh whose boundary is the face's border and holes, and what was left out.
+
+    Attributes
+    ----------
+    faces : ndarray (P,) bool
+        Polygons used for border and hole detection.
+    duplicate_faces : ndarray (K,) int64
+        Polygons repeating an earlier one (left out).
+    fin_faces : ndarray (K,) int64
+        Polygons of small sheets attached to the surface only through non-manifold edges or
+        vertices (fins, flaps; left out).
+    non_manifold_edges : ndarray (K, 2) int64
+        Edges with more than two polygons (after removing duplicates).
+    non_manifold_vertices : ndarray (K,) int64
+        Vertices whose polygons do not form one fan (bow-ties, fin roots).
+    """
+
+    faces: np.ndarray
+    duplicate_faces: np.ndarray
+    fin_faces: np.ndarray
+    non_manifold_edges: np.ndarray
+    non_manifold_vertices: np.ndarray
+
+    @property
+    def clean(self) -> bool:
+        return not (self.duplicate_faces.size or self.fin_faces.size or self.non_manifold_edges.size
+                    or self.non_manifold_vertices.size)
+
+    def summary(self) -> dict:
+        return {"duplicateFaces": self.duplicate_faces.tolist()[:100],
+                "finFaces": self.fin_faces.tolist()[:100],
+                "nonManifoldEdges": self.non_manifold_edges.tolist()[:100],
+                "nonManifoldVertices": self.non_manifold_vertices.tolist()[:100]}
+
+    def message(self, source: str) -> str:
+        """One line for a warning: what is wrong, where (0-based indices), what was done."""
+        def some(values, n=8):
+            values = [str(v) for v in values]
+            return ", ".join(values[:n]) + (f", ... ({len(values)} in all)" if len(values) > n else "")
+
+        parts = []
+        if self.non_manifold_edges.size:
+            parts.append(f"{len(self.non_manifold_edges)} non-manifold edge(s) (more than two faces; vertex pairs "
+                         f"{some(f'{a}-{b}' for a, b in self.non_manifold_edges)})")
+        others = np.setdiff1d(self.non_manifold_vertices, self.non_manifold_edges.ravel())
+        if others.size:
+            parts.append(f"{others.size} non-manifold (bow-tie) vertex(es) ({some(others)})")
+        if self.fin_faces.size:
+            parts.append(f"{self.fin_faces.size} face(s) of fins attached there ({some(self.fin_faces)}) left out of "
+                         "the border and hole detection")
+        if self.duplicate_faces.size:
+            parts.append(f"{self.duplicate_faces.size} duplicate face(s) ({some(self.duplicate_faces)}) ignored")
+        done = ("the border and holes were found on the rest of the surface" if self.fin_faces.size or
+                self.duplicate_faces.size else "boundary loops meeting at a vertex were kept apart")
+        return f"mesh {source}: " + "; ".join(parts) + f" (0-based indices); {done}: check the mesh"
+
+
+def border_surface(mesh: FaceMesh) -> BorderSurface:
+    """The polygons whose boundary is the face's border and holes.
+
+    Duplicate polygons are dropped. The rest is cut into sheets (polygons joined through edges with
+    exactly two polygons); in each connected piece of the mesh, a sheet attached to the largest
+    one only through non-manifold edges or vertices, with at most :data:`FIN_FRACTION` of its
+    polygons, is a fin: a stray polygon glued onto the surface, whose edges are not a border.
+
+    Parameters
+    ----------
+    mesh : FaceMesh
+
+    Returns
+    -------
+    BorderSurface
+    """
+    dup = duplicate_faces(mesh)
+    keep = np.ones(mesh.n_faces, dtype=bool)
+    keep[dup] = False
+    sub = subset_faces(mesh, keep)
+    t = edge_topology(sub)
+    nm_edges = t.edges[t.edge_face_counts > 2]
+    nm_vertices = non_manifold_vertices(t)
+    fins = np.empty(0, dtype=np.int64)
+    if nm_edges.size or nm_vertices.size:
+        fins = _fins(sub, t, nm_vertices)
+        fins = np.flatnonzero(keep)[fins]  # back to the mesh's face indices
+        keep[fins] = False
+    return BorderSurface(faces=keep, duplicate_faces=dup, fin_faces=fins, non_manifold_edges=nm_edges,
+                         non_manifold_vertices=nm_vertices)
+
+
+def subset_faces(mesh: FaceMesh, faces: np.ndarray) -> FaceMesh:
+    """The same points with only the polygons where ``faces`` (P,) bool is True."""
+    if faces.all():
+        return mesh
+    corner = np.repeat(faces, mesh.face_vertex_counts)
+    return FaceMesh(mesh.points, mesh.face_vertex_counts[faces], mesh.face_vertex_indices[corner], units=mesh.units,
+                    name=mesh.name, source=mesh.source)
+
+
+def _fins(mesh: FaceMesh, t: EdgeTopology, nm_vertices: np.ndarray) -> np.ndarray:
+    """Polygon indices (into ``mesh``) of fins: see :func:`border_surface`."""
+    n_faces = mesh.n_faces
+    # sheets: polygons joined through manifold interior edges
+    inner = np.flatnonzero(t.edge_face_counts[t.side_edges] == 2)
+    order = np.argsort(t.side_edges[inner], kind="stable")
+    pairs = inner[order].reshape(-1, 2)
+    f1, f2 = t.side_faces[pairs[:, 0]], t.side_faces[pairs[:, 1]]
+    g = sp.csr_matrix((np.ones(f1.size, dtype=np.int8), (f1, f2)), shape=(n_faces, n_faces))
+    _, sheet = _cc(g, directed=False)
+    sizes = np.bincount(sheet)
+    # connected pieces of the mesh (through any shared vertex)
+    _, piece_of_vertex = connected_components(t)
+    piece = piece_of_vertex[mesh.face_vertex_indices[mesh.face_starts]]
+    main = {}
+    for p_, s_ in zip(piece, sheet):
+        if p_ not in main or sizes[s_] > sizes[main[p_]]:
+            main[p_] = s_
+    # sheets touching a non-manifold edge or vertex
+    bad_vertex = np.zeros(mesh.n_points, dtype=bool)
+    bad_vertex[nm_vertices] = True
+    bad_vertex[t.edges[t.edge_face_counts > 2].ravel()] = True
+    touching = np.zeros(sizes.size, dtype=bool)
+    corner_bad = bad_vertex[mesh.face_vertex_indices]
+    touching[sheet[np.repeat(np.arange(n_faces), mesh.face_vertex_counts)[corner_bad]]] = True
+    fin_sheet = np.zeros(sizes.size, dtype=bool)
+    for s_ in np.flatnonzero(touching):
+        p_ = piece[np.flatnonzero(sheet == s_)[0]]
+        m_ = main[p_]
+        if s_ != m_ and sizes[s_] <= FIN_FRACTION * sizes[m_]:
+            fin_sheet[s_] = True
+    return np.flatnonzero(fin_sheet[sheet])
+
+
 def mesh_topology(mesh: FaceMesh) -> dict:
     """Summary counts of a mesh's topology (for reports and ``usdface info``).
 
@@ -354,11 +542,15 @@ def find_hole_regions(mesh: FaceMesh, *, loops: list[np.ndarray] | None = None) 
       largest on the performer's left (mean x > mid x) is ``leftEye``, on the right ``rightEye``;
     - every other loop is ``hole1``, ``hole2``, ... (role ``other``) by decreasing extent.
 
+    Loops are found on :func:`border_surface`: duplicate polygons and fins glued on through
+    non-manifold edges or vertices are left out, so a fin on the border never becomes the
+    outer border (nor splits it), and holes touching at a vertex stay separate loops.
+
     Parameters
     ----------
     mesh : FaceMesh
     loops : list of ndarray, optional
-        Boundary loops if already computed (:func:`boundary_loops`).
+        Boundary loops if already computed (:func:`boundary_loops` of the border surface).
 
     Returns
     -------
@@ -367,7 +559,8 @@ def find_hole_regions(mesh: FaceMesh, *, loops: list[np.ndarray] | None = None) 
         ``indices`` are the loop's vertices and ``loop`` the ordered loop. Empty for a closed mesh.
     """
     if loops is None:
-        loops = boundary_loops(mesh)
+        surface = border_surface(mesh)
+        loops = boundary_loops(subset_faces(mesh, surface.faces))
     if not loops:
         return []
     p = mesh.points

@@ -5,7 +5,7 @@ No GPU and no pxr: pure functions over numpy arrays returning ``(H, W, 3) uint8`
 
 Main entry points
 -----------------
-- :class:`Camera` — ``Camera.fit(points, view="front"|"left"|"right"|"side"|yaw, size=(512, 512),
+- :class:`Camera` — ``Camera.fit(points, view="front"|"three-quarter"|"side"|"turntable"|yaw, size=(512, 512),
   projection="orthographic"|"perspective")``; fit once on all frames to share a framing.
   :func:`fit_camera` does the same and leaves room for the title and colour bar.
 - :func:`render_mesh` — ``render_mesh(points, triangles, *, camera=None, view="front",
@@ -16,12 +16,13 @@ Main entry points
 - Lower level: :func:`rasterize`, :func:`render_buffers`, :func:`point_visibility`,
   :func:`polygon_edges`, :func:`apply_colormap`, :func:`colormap_lut`.
 """
-from .camera import VIEWS, Camera
+from .camera import TURNTABLE_SWING, VIEW_CHOICES, VIEWS, Camera, view_yaw
 from .colormap import COLORMAPS, apply_colormap, colormap_lut, region_palette
-from .render import (Buffers, fit_camera, point_visibility, polygon_edges, rasterize, render_buffers, render_face,
+from .png import encode_jpeg
+from .render import (Buffers, encode_png, fit_camera, point_visibility, polygon_edges, rasterize, render_buffers, render_face,
                      render_mesh, vertex_normals, write_png)
 from .sheet import contact_sheet, render_sequence
 
-__all__ = ["COLORMAPS", "VIEWS", "Buffers", "Camera", "apply_colormap", "colormap_lut", "contact_sheet", "fit_camera",
+__all__ = ["COLORMAPS", "TURNTABLE_SWING", "VIEW_CHOICES", "VIEWS", "Buffers", "Camera", "apply_colormap", "colormap_lut", "contact_sheet", "encode_jpeg", "encode_png", "fit_camera",
            "point_visibility", "polygon_edges", "rasterize", "region_palette", "render_buffers",
-           "render_face", "render_mesh", "render_sequence", "vertex_normals", "write_png"]
+           "render_face", "render_mesh", "render_sequence", "vertex_normals", "view_yaw", "write_png"]

@@ -8,20 +8,25 @@ Conventions
   (row i, column j) covers [j, j+1) x [i, i+1) and its centre is (j + 0.5, i + 0.5).
 - Depth is the distance along the viewing direction from the camera (larger = farther).
 
-Named views (yaw of the camera about ``up``, from in front of the face):
+Named views (yaw of the camera about ``up``, from in front of the face), one list for
+``usdface preview`` and ``usdface playblast`` (:data:`VIEW_CHOICES`):
 
-======== ===== ==========================================================
-view     yaw   what it shows
-======== ===== ==========================================================
-front    0     the face head-on, looking along -Z
-left     +35   three-quarter view of the face's left side (camera toward +X)
-right    -35   three-quarter view of the face's right side (camera toward -X)
-side     +90   profile from the face's left (alias ``side_left``)
-side_right -90 profile from the face's right
-======== ===== ==========================================================
+============= ===== ==========================================================
+view          yaw   what it shows
+============= ===== ==========================================================
+front         0     the face head-on, looking along -Z
+three-quarter +35   three-quarter view of the face's left side (alias ``left``)
+side          +90   profile from the face's left (alias ``side_left``)
+turntable     swing the camera swings from -75 to +75 degrees and back (sinusoidal) over
+                    a period; in a still image (a preview) it is the front view
+left          +35   three-quarter view of the face's left side (camera toward +X)
+right         -35   three-quarter view of the face's right side (camera toward -X)
+side_right    -90   profile from the face's right
+============= ===== ==========================================================
 
 A number instead of a name is a yaw in degrees. ``pitch`` (degrees, positive = camera above the
-face looking down) tilts any view.
+face looking down) tilts any view. :func:`view_yaw` gives the yaw of a view at a phase of the
+turntable's period.
 
 For an animation, frame once and reuse the camera so every frame shares the framing:
 ``Camera.fit(frames)`` with ``frames`` of shape (F, N, 3) frames the union of all frames;
@@ -35,9 +40,33 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import OptionError, list_names
+from ..options import VIEWS as VIEW_CHOICES  # one list of views: options, preview, playblast
 
-#: yaw in degrees of each named view
-VIEWS = {"front": 0.0, "left": 35.0, "right": -35.0, "side": 90.0, "side_left": 90.0, "side_right": -90.0}
+#: yaw in degrees of each named view (``turntable``: its still, the front)
+VIEWS = {"front": 0.0, "three-quarter": 35.0, "side": 90.0, "turntable": 0.0, "left": 35.0, "right": -35.0,
+         "side_left": 90.0, "side_right": -90.0}
+#: the views the commands offer (``preview --view``, ``playblast --view``), in help order
+#: the turntable swings the camera between -TURNTABLE_SWING and +TURNTABLE_SWING degrees of yaw
+TURNTABLE_SWING = 75.0
+
+
+def view_yaw(view: str | float, phase: float = 0.0) -> float:
+    """Yaw in degrees of ``view`` at ``phase`` (turns of the turntable period; other views ignore it).
+
+    The turntable swings sinusoidally, ``TURNTABLE_SWING * sin(2 pi phase)``: front at phases 0 and
+    0.5, the face's left at 0.25, its right at 0.75 (an open face mask is never seen from behind).
+    """
+    if isinstance(view, str):
+        if view not in VIEWS:
+            raise OptionError(f"unknown view {view!r}; expected one of {list_names(VIEW_CHOICES)} or a yaw in degrees")
+        if view == "turntable":
+            return TURNTABLE_SWING * math.sin(2.0 * math.pi * float(phase))
+        return VIEWS[view]
+    try:
+        return float(view)
+    except (TypeError, ValueError):
+        raise OptionError(f"view must be a name ({list_names(VIEW_CHOICES)}) or a yaw in degrees; "
+                          f"got {view!r}") from None
 PROJECTIONS = ("orthographic", "perspective")
 
 
@@ -181,16 +210,7 @@ class Camera:
     def view_rotation(view: str | float = "front", *, pitch: float = 0.0, up=(0.0, 1.0, 0.0),
                       forward=(0.0, 0.0, 1.0)) -> np.ndarray:
         """(3, 3) world-to-camera rotation of a named view (see the module docstring)."""
-        if isinstance(view, str):
-            if view not in VIEWS:
-                raise OptionError(f"unknown view {view!r}; expected one of {list_names(VIEWS)} or a yaw in degrees")
-            yaw = VIEWS[view]
-        else:
-            try:
-                yaw = float(view)
-            except (TypeError, ValueError):
-                raise OptionError(f"view must be a name ({list_names(VIEWS)}) or a yaw in degrees; "
-                                  f"got {view!r}") from None
+        yaw = view_yaw(view)
         up_v = _unit(up, "up")
         fwd = _unit(forward, "forward")
         fwd = fwd - up_v * np.dot(fwd, up_v)

@@ -155,7 +155,7 @@ def apply_colormap(scalars: np.ndarray, *, vrange: tuple[float, float] | None = 
 ROLE_COLORS = {
     "mouth": [(226, 84, 72), (240, 120, 100)],
     "eye": [(62, 128, 240), (44, 178, 232), (110, 110, 245)],
-    "outerBorder": [(150, 150, 150)],
+    "outerBorder": [(84, 84, 84)],  # dark: the clay surface is light grey
 }
 #: colours for regions that are neither mouth, eye nor border, in order of appearance
 OTHER_COLORS = [(240, 168, 48), (92, 190, 104), (186, 110, 214), (58, 196, 190), (232, 118, 168),

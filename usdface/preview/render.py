@@ -24,33 +24,23 @@ How a frame is made
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, MeshError, OptionError, ResourceError, UsdFaceError
+from ..errors import MeshError, OptionError
+from ._common import _bgr, _compiled, _cv2, _rgb  # noqa: F401  (_cv2: the module's OpenCV, for callers)
 from .camera import Camera
-from .colormap import (CLAY, NAN_COLOR, apply_colormap, colormap_lut, region_palette as _region_palette,
-                       scalar_range as _scalar_range)
+from .colormap import CLAY, apply_colormap, colormap_lut, region_palette as _region_palette, \
+    scalar_range as _scalar_range
+from .overlays import (_colorbar, _draw_points, _legend, _overlay_scale, _text,  # noqa: F401  (_text: sheet, burnin)
+                       MIN_LABEL_FONT, draw_point_labels, glyph_radius, label_font, place_point_labels)
+from .png import encode_png, write_png  # noqa: F401  (re-exported)
+from .shading import BACKGROUND, _background, _shade, _wire_mask, vertex_normals  # noqa: F401
 
-#: default background: vertical gradient, RGB 0..255, top then bottom
-BACKGROUND = ((72, 76, 84), (30, 32, 36))
 #: shading modes of :func:`render_mesh`
 SHADINGS = ("smooth", "flat", "unlit")
-#: tint mixed into back faces (RGB 0..1)
-BACK_TINT = (0.42, 0.33, 0.48)
-
-
-def _cv2():
-    try:
-        import cv2
-    except ImportError as exc:  # pragma: no cover - cv2 is a dependency of usdface
-        raise UsdFaceError("usdface previews need OpenCV: pip install opencv-contrib-python-headless") from exc
-    return cv2
 
 
 # ================================================================================================
@@ -59,6 +49,10 @@ def _cv2():
 def rasterize(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
               max_candidates: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:
     """Z-buffered scan conversion of triangles given in image coordinates.
+
+    Runs the compiled kernel of :mod:`usdface.preview._kernels` when numba is installed (same
+    result, bit for bit, as the vectorised numpy version :func:`_rasterize_numpy`, which it
+    falls back to).
 
     Parameters
     ----------
@@ -88,9 +82,24 @@ def rasterize(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
     triangle, the three edge half-planes give the covered x-interval, and only covered pixels are
     generated. A pixel is covered when its centre lies inside the triangle or on an edge; edge
     crossings are computed in a canonical form, so triangles sharing an edge leave neither cracks
-    nor gaps. Depth ties go to either triangle. Cost is proportional to the number of covered
+    nor gaps. Depth ties go to the later triangle. Cost is proportional to the number of covered
     pixels (with overdraw) plus the number of triangle rows.
     """
+    kernels = _compiled()
+    if kernels is not None:
+        w, h = (int(s) for s in size)
+        tri_index = np.full(h * w, -1, dtype=np.int32)
+        zbuf = np.full(h * w, np.inf)
+        tri = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
+        kernels.rasterize_kernel(np.ascontiguousarray(xy, dtype=np.float64),
+                                  np.ascontiguousarray(zkey, dtype=np.float64), tri, w, h, tri_index, zbuf)
+        return tri_index.reshape(h, w), zbuf.reshape(h, w)
+    return _rasterize_numpy(xy, zkey, triangles, size, max_candidates=max_candidates)
+
+
+def _rasterize_numpy(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
+                     max_candidates: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rasterize` in vectorised numpy (the reference of the compiled kernel)."""
     w, h = (int(s) for s in size)
     xy = np.asarray(xy, dtype=np.float64)
     z = np.asarray(zkey, dtype=np.float64)
@@ -179,18 +188,6 @@ def rasterize(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
             r_start = r_stop
         t_start = t_stop
     return tri_index.reshape(h, w), zbuf.reshape(h, w)
-
-
-def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """(N, 3) unit vertex normals, area-weighted average of the incident triangle normals
-    (right-hand rule: counter-clockwise triangles face the viewer). Isolated vertices get (0, 0, 0)."""
-    p = np.asarray(points, dtype=np.float64)
-    t = np.asarray(triangles, dtype=np.int64)
-    fn = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])  # length = 2 * area
-    flat = t.ravel()
-    n = np.stack([np.bincount(flat, weights=np.repeat(fn[:, k], 3), minlength=p.shape[0]) for k in range(3)], axis=1)
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -309,11 +306,25 @@ def point_visibility(points: np.ndarray, buffers: Buffers, *, tolerance: float, 
     visible = np.zeros(pts.shape[0], dtype=bool)
     idx = np.flatnonzero(in_view)
     if idx.size:
-        ref = _neighbourhood_max(buffers.depth, radius) if _ref is None else _ref
         j = np.floor(xy[idx, 0]).astype(np.int64)
         i = np.floor(xy[idx, 1]).astype(np.int64)
-        visible[idx] = depth[idx] <= ref[i, j] + tolerance
+        near = _ref[i, j] if _ref is not None else _window_max(buffers.depth, i, j, radius)
+        visible[idx] = depth[idx] <= near + tolerance
     return in_view, visible
+
+
+def _window_max(depth: np.ndarray, i: np.ndarray, j: np.ndarray, radius: int) -> np.ndarray:
+    """:func:`_neighbourhood_max` at the pixels (i, j) only (a few points: no full-image pass)."""
+    h, w = depth.shape
+    d = np.where(np.isfinite(depth), depth, np.finfo(np.float32).max)
+    best = np.full(i.shape, -np.inf)
+    for di in range(-radius, radius + 1):
+        for dj in range(-radius, radius + 1):
+            ii, jj = i + di, j + dj
+            ok = (ii >= 0) & (ii < h) & (jj >= 0) & (jj < w)
+            best = np.where(ok, np.maximum(best, d[np.clip(ii, 0, h - 1), np.clip(jj, 0, w - 1)]), best)
+    # the full-image version works in float32: round the same way so both agree exactly
+    return best.astype(np.float32).astype(np.float64)
 
 
 # ================================================================================================
@@ -352,20 +363,6 @@ def _labels(labels, n: int, what: str) -> list[str] | None:
     if len(labels) != n:
         raise OptionError(f"preview: {len(labels)} {what} labels for {n} {what}")
     return labels
-
-
-def _rgb(c, what: str) -> tuple[int, int, int]:
-    try:
-        r, g, b = (int(round(float(v))) for v in c)
-    except (TypeError, ValueError):
-        raise OptionError(f"preview: {what} must be an (r, g, b) colour in 0..255; got {c!r}") from None
-    if not all(0 <= v <= 255 for v in (r, g, b)):
-        raise OptionError(f"preview: {what} must be an (r, g, b) colour in 0..255; got {c!r}")
-    return r, g, b
-
-
-def _bgr(rgb) -> tuple[int, int, int]:
-    return int(rgb[2]), int(rgb[1]), int(rgb[0])
 
 
 def polygon_edges(face_vertex_counts: np.ndarray, face_vertex_indices: np.ndarray) -> np.ndarray:
@@ -409,321 +406,8 @@ def _region_items(region_colors) -> list[tuple[str, str | None, np.ndarray]]:
 
 
 # ================================================================================================
-# shading
-# ================================================================================================
-def _normalize(v) -> np.ndarray:
-    v = np.asarray(v, dtype=np.float64)
-    return v / np.linalg.norm(v)
-
-
-# lights in camera coordinates (right, up, viewing direction); vectors point toward the light
-_KEY = _normalize((-0.35, 0.45, -1.0))
-_FILL = _normalize((0.85, -0.05, -0.45))
-_HALF = _normalize(_KEY + np.array([0.0, 0.0, -1.0]))
-_KEY32, _FILL32, _HALF32 = (v.astype(np.float32) for v in (_KEY, _FILL, _HALF))
-
-
-def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarray, *, shading: str,
-           specular: float, scalar_t: np.ndarray | None = None,
-           lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Shaded colours (K, 3) uint8 BGR of the K covered pixels, and their flat indices.
-
-    Per-triangle data (barycentric gradients, per-corner normal and colour) is packed once into a
-    contiguous float32 block, so each pixel needs a single row gather.
-
-    With ``scalar_t`` ((N,) values normalised to [0, 1], NaN for none) the scalar itself is
-    interpolated and looked up in ``lut`` per pixel, so a pixel between a low and a high vertex
-    shows a colour of the map (interpolating the colours would show colours that are not on it);
-    pixels mostly weighted by NaN vertices show :data:`NAN_COLOR`.
-    """
-    h, w = buf.triangle.shape
-    flat_tri = buf.triangle.ravel()
-    pix = np.flatnonzero(flat_tri >= 0)
-    if pix.size == 0:
-        return np.zeros((0, 3), np.uint8), pix
-    t = flat_tri[pix]
-    # --- per triangle ---------------------------------------------------------------------------
-    v = buf.xy[tris]  # (T, 3, 2)
-    e1 = v[:, 1] - v[:, 0]
-    e2 = v[:, 2] - v[:, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / (e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1])
-    inv[~np.isfinite(inv)] = 0.0
-    rot = buf.camera.rotation
-    flat = shading == "flat"
-    if shading == "unlit":
-        corner_n = np.zeros((tris.shape[0], 3, 3))
-    elif flat:
-        fn = np.cross(points[tris[:, 1]] - points[tris[:, 0]], points[tris[:, 2]] - points[tris[:, 0]]) @ rot.T
-        corner_n = np.repeat(fn[:, None, :], 3, axis=1)
-    else:
-        corner_n = (vertex_normals(points, tris) @ rot.T)[tris]
-    front = buf.front.astype(np.float64)[:, None, None]
-    corner_n = corner_n * (2.0 * front - 1.0)  # back faces: lit from their own side
-    geo = np.stack([v[:, 0, 0], v[:, 0, 1], e2[:, 1] * inv, -e2[:, 0] * inv, -e1[:, 1] * inv, e1[:, 0] * inv], axis=1)
-    parts = [geo, corner_n.reshape(-1, 9), colors[tris].reshape(-1, 9), buf.front[:, None].astype(np.float64)]
-    if buf.camera.perspective:
-        with np.errstate(divide="ignore"):
-            parts.append(1.0 / buf.vertex_depth[tris])
-    else:
-        parts.append(np.ones((tris.shape[0], 3)))
-    if scalar_t is not None:
-        ct = scalar_t[tris]
-        bad = ~np.isfinite(ct)
-        if bad.any():  # a NaN corner takes the mean of the triangle's finite corners (or 0)
-            cnt = (~bad).sum(axis=1)
-            mean = np.divide(np.where(bad, 0.0, ct).sum(axis=1), cnt, out=np.zeros(len(ct)), where=cnt > 0)
-            ct = np.where(bad, mean[:, None], ct)
-        parts += [ct, bad.astype(np.float64)]
-    # (C, T) so that the per-pixel gather gives (C, K) with contiguous rows (a (K, C) block would
-    # be read column by column with a cache miss per element)
-    block = np.ascontiguousarray(np.concatenate(parts, axis=1).T, dtype=np.float32)
-    # --- per pixel, in cache-sized chunks -------------------------------------------------------
-    out = np.empty((pix.size, 3), np.uint8)
-    lut32 = None if lut is None else np.ascontiguousarray(lut.T, dtype=np.float32)
-    step = 1 << 15
-    for k in range(0, pix.size, step):
-        out[k:k + step] = _shade_pixels(block, t[k:k + step], pix[k:k + step], w, shading=shading,
-                                        specular=specular, perspective=buf.camera.perspective,
-                                        scalar=scalar_t is not None, lut=lut32)
-    return out, pix
-
-
-_NAN32 = np.asarray(NAN_COLOR, dtype=np.float32)[:, None]
-_TINT32 = np.asarray(BACK_TINT, dtype=np.float32)[:, None]
-
-
-def _shade_pixels(block, t, pix, w, *, shading, specular, perspective, scalar, lut) -> np.ndarray:
-    c = np.take(block, t, axis=1)
-    py, px = np.divmod(pix, w)
-    dx = px.astype(np.float32)
-    dx += 0.5
-    dx -= c[0]
-    dy = py.astype(np.float32)
-    dy += 0.5
-    dy -= c[1]
-    b1 = np.clip(c[2] * dx + c[3] * dy, 0.0, 1.0)
-    b2 = np.clip(c[4] * dx + c[5] * dy, 0.0, 1.0)
-    b0 = np.clip(1.0 - b1 - b2, 0.0, 1.0)
-    if perspective:  # perspective-correct: interpolate attribute/depth, then divide
-        b0 *= c[25]
-        b1 *= c[26]
-        b2 *= c[27]
-    norm = b0 + b1 + b2
-    norm[norm <= 0] = 1.0
-    b0 /= norm
-    b1 /= norm
-    b2 /= norm
-    if scalar:
-        tt = b0 * c[28] + b1 * c[29] + b2 * c[30]
-        nanw = b0 * c[31] + b1 * c[32] + b2 * c[33]
-        idx = np.clip(np.rint(tt * (lut.shape[1] - 1)), 0, lut.shape[1] - 1).astype(np.intp)
-        base = np.where(nanw < 0.5, lut[:, idx], _NAN32)
-    else:
-        base = b0 * c[15:18] + b1 * c[18:21] + b2 * c[21:24]  # (3, K)
-    if shading == "unlit":
-        base *= 255.0
-        base += 0.5
-        np.clip(base, 0.0, 255.0, out=base)
-        return base[::-1].T.astype(np.uint8)
-    n = b0 * c[6:9] + b1 * c[9:12] + b2 * c[12:15]
-    n /= np.maximum(np.sqrt((n * n).sum(axis=0)), 1e-20)
-    key = np.clip(_KEY32 @ n, 0.0, None)
-    fill = np.clip(_FILL32 @ n, 0.0, None)
-    light = 0.20 + 0.72 * key + 0.26 * fill
-    hv = np.clip(_HALF32 @ n, 0.0, None)
-    h8 = hv * hv
-    h8 *= h8
-    h8 *= h8
-    spec = h8 * h8
-    spec *= spec
-    spec *= h8  # hv ** 40
-    spec *= specular
-    back = c[24] < 0.5
-    if back.any():
-        base[:, back] = 0.4 * base[:, back] + 0.6 * _TINT32
-        light[back] *= 0.62
-        spec[back] = 0.0
-    rgb = base * light
-    rgb += spec
-    rgb *= 255.0
-    rgb += 0.5
-    np.clip(rgb, 0.0, 255.0, out=rgb)
-    return rgb[::-1].T.astype(np.uint8)
-
-
-def _background(size, background) -> np.ndarray:
-    """(H, W, 3) uint8 BGR background."""
-    w, h = size
-    if background is None:
-        top, bottom = (np.asarray(c[::-1], dtype=np.float32) for c in BACKGROUND)
-        t = np.linspace(0.0, 1.0, h, dtype=np.float32)[:, None]
-        col = (top * (1 - t) + bottom * t + 0.5).astype(np.uint8)
-        return np.ascontiguousarray(np.broadcast_to(col[:, None, :], (h, w, 3)))
-    out = np.empty((h, w, 3), np.uint8)
-    out[:] = _bgr(_rgb(background, "background"))
-    return out
-
-
-def _wire_mask(buf: Buffers, edges: np.ndarray, tolerance: float, ref: np.ndarray) -> np.ndarray:
-    """(H, W) bool: pixels on visible parts of the edges."""
-    h, w = buf.triangle.shape
-    p0, p1 = buf.xy[edges[:, 0]], buf.xy[edges[:, 1]]
-    d0, d1 = buf.vertex_depth[edges[:, 0]], buf.vertex_depth[edges[:, 1]]
-    ok = np.isfinite(p0).all(axis=1) & np.isfinite(p1).all(axis=1)
-    p0, p1, d0, d1 = p0[ok], p1[ok], d0[ok], d1[ok]
-    mask = np.zeros(h * w, dtype=bool)
-    if p0.shape[0] == 0:
-        return mask.reshape(h, w)
-    length = np.abs(p1 - p0).max(axis=1)
-    nseg = np.clip(np.ceil(length * 1.5).astype(np.int64), 1, 4 * (w + h))
-    e = np.repeat(np.arange(p0.shape[0]), nseg + 1)
-    first = np.cumsum(nseg + 1) - (nseg + 1)
-    s = (np.arange(e.size) - first[e]) / nseg[e]
-    xy = p0[e] + (p1 - p0)[e] * s[:, None]
-    if buf.camera.perspective:
-        depth = 1.0 / ((1 - s) / d0[e] + s / d1[e])
-    else:
-        depth = d0[e] + (d1 - d0)[e] * s
-    j = np.floor(xy[:, 0]).astype(np.int64)
-    i = np.floor(xy[:, 1]).astype(np.int64)
-    inside = (j >= 0) & (j < w) & (i >= 0) & (i < h)
-    j, i, depth = j[inside], i[inside], depth[inside]
-    vis = depth <= ref[i, j] + tolerance
-    mask[i[vis] * w + j[vis]] = True
-    return mask.reshape(h, w)
-
-
-# ================================================================================================
-# overlays (final resolution, BGR uint8)
-# ================================================================================================
-_FONT = 0  # cv2.FONT_HERSHEY_SIMPLEX
-
-
-def _text(img, text: str, org, scale: float, rgb, *, thickness: int = 1, outline: bool = True,
-          align: str = "left") -> None:
-    """Anti-aliased text with a dark outline; org is the baseline start (or end if align=right)."""
-    cv2 = _cv2()
-    x, y = int(round(org[0])), int(round(org[1]))
-    if align == "right":
-        (tw, _), _ = cv2.getTextSize(text, _FONT, scale, thickness)
-        x -= tw
-    if outline:
-        cv2.putText(img, text, (x, y), _FONT, scale, (12, 12, 12), thickness + 2, cv2.LINE_AA)
-    cv2.putText(img, text, (x, y), _FONT, scale, _bgr(rgb), thickness, cv2.LINE_AA)
-
-
-def _dim(rgb, k: float = 0.5, toward=(110, 110, 110)) -> tuple[int, int, int]:
-    return tuple(int(round(c * (1 - k) + t * k)) for c, t in zip(rgb, toward))
-
-
-def _draw_points(img, xy, in_view, visible, labels, rgb, *, radius: float, shape: str,
-                 font: float) -> None:
-    cv2 = _cv2()
-    sh = 4
-    f = 1 << sh
-    hidden_rgb = _dim(rgb, 0.45)
-    order = np.argsort(visible, kind="stable")  # hidden first, visible on top
-    for m in order:
-        if not in_view[m]:
-            continue
-        cx, cy = xy[m, 0] - 0.5, xy[m, 1] - 0.5
-        c = (int(round(cx * f)), int(round(cy * f)))
-        vis = bool(visible[m])
-        if shape == "circle":
-            r = int(round(radius * f))
-            if vis:
-                cv2.circle(img, c, r + f, (15, 15, 15), -1, cv2.LINE_AA, sh)
-                cv2.circle(img, c, r, _bgr(rgb), -1, cv2.LINE_AA, sh)
-            else:
-                cv2.circle(img, c, r, (15, 15, 15), 2, cv2.LINE_AA, sh)
-                cv2.circle(img, c, r, _bgr(hidden_rgb), 1, cv2.LINE_AA, sh)
-        else:  # diamond
-            r = radius * 1.25
-            poly = np.array([[cx, cy - r], [cx + r, cy], [cx, cy + r], [cx - r, cy]])
-            ip = np.round(poly * f).astype(np.int32).reshape(-1, 1, 2)
-            if vis:
-                big = np.array([[cx, cy - r - 1.3], [cx + r + 1.3, cy], [cx, cy + r + 1.3], [cx - r - 1.3, cy]])
-                cv2.fillConvexPoly(img, np.round(big * f).astype(np.int32), (15, 15, 15), cv2.LINE_AA, sh)
-                cv2.fillConvexPoly(img, ip.reshape(-1, 2), _bgr(rgb), cv2.LINE_AA, sh)
-            else:
-                cv2.polylines(img, [ip], True, (15, 15, 15), 2, cv2.LINE_AA, sh)
-                cv2.polylines(img, [ip], True, _bgr(hidden_rgb), 1, cv2.LINE_AA, sh)
-        if labels is not None and labels[m]:
-            _text(img, labels[m], (cx + radius + 2, cy - radius - 1), font, rgb if vis else hidden_rgb)
-
-
-def _colorbar(img, lut: np.ndarray, lo: float, hi: float, label: str, s: float, has_nan: bool) -> None:
-    cv2 = _cv2()
-    h, w = img.shape[:2]
-    bw = max(8, int(round(12 * s)))
-    x1 = w - int(round(12 * s))
-    x0 = x1 - bw
-    y0, y1 = int(round(h * 0.22)), int(round(h * 0.74))
-    n = max(y1 - y0, 2)
-    col = lut[np.rint(np.linspace(lut.shape[0] - 1, 0, n)).astype(int)]  # top = high
-    img[y0:y0 + n, x0:x1] = (np.round(col[:, ::-1] * 255).astype(np.uint8))[:, None, :]
-    cv2.rectangle(img, (x0 - 1, y0 - 1), (x1, y0 + n), (200, 200, 200), 1, cv2.LINE_8)  # outside the bar
-    font = 0.38 * s
-    fmt = _fmt_range(lo, hi)
-    for frac, val in ((0.0, hi), (0.5, (lo + hi) / 2), (1.0, lo)):
-        y = y0 + frac * (n - 1)
-        cv2.line(img, (x0 - 4, int(round(y))), (x0 - 1, int(round(y))), (220, 220, 220), 1, cv2.LINE_AA)
-        _text(img, fmt(val), (x0 - 6, y + 4 * s), font, (235, 235, 235), align="right")
-    if label:
-        _text(img, label, (x1, y0 - 13 * s), 0.42 * s, (240, 240, 240), align="right")
-    if has_nan:
-        yy = y0 + n + int(round(8 * s))
-        cv2.rectangle(img, (x0, yy), (x1 - 1, yy + bw - 1), (140, 140, 140), -1)
-        _text(img, "n/a", (x0 - 6, yy + bw - 2), font, (235, 235, 235), align="right")
-
-
-def _fmt_range(lo: float, hi: float):
-    span = abs(hi - lo) or max(abs(hi), abs(lo), 1.0)
-    mag = max(abs(lo), abs(hi))
-    if mag >= 1e5 or (mag > 0 and mag < 1e-3):
-        return lambda v: f"{v:.3g}"
-    digits = int(np.clip(2 - np.floor(np.log10(span)), 0, 6))
-    return lambda v: f"{v:.{digits}f}"
-
-
-def _legend(img, entries, s: float, *, corner: str = "bottom-left") -> None:
-    """entries: (kind, rgb, text); kind 'swatch' | 'circle' | 'diamond'."""
-    cv2 = _cv2()
-    if not entries:
-        return
-    h, w = img.shape[:2]
-    font = 0.40 * s
-    step = int(round(17 * s))
-    sw = int(round(10 * s))
-    widths = [cv2.getTextSize(t, _FONT, font, 1)[0][0] for _, _, t in entries]
-    pad = int(round(8 * s))
-    y = h - pad - step * (len(entries) - 1)
-    x = pad if corner == "bottom-left" else w - pad - max(widths) - sw - int(round(6 * s))
-    for kind, rgb, text in entries:
-        cy = y - sw // 2 - 1
-        if kind == "swatch":
-            cv2.rectangle(img, (x - 1, cy - sw // 2 - 1), (x + sw, cy + sw // 2 + 1), (15, 15, 15), -1)
-            cv2.rectangle(img, (x, cy - sw // 2), (x + sw - 1, cy + sw // 2), _bgr(rgb), -1)
-        elif kind == "circle":
-            cv2.circle(img, (x + sw // 2, cy), sw // 2 + 1, (15, 15, 15), -1, cv2.LINE_AA)
-            cv2.circle(img, (x + sw // 2, cy), sw // 2, _bgr(rgb), -1, cv2.LINE_AA)
-        else:
-            r = sw // 2 + 1
-            c = (x + sw // 2, cy)
-            pts = np.array([[c[0], c[1] - r], [c[0] + r, c[1]], [c[0], c[1] + r], [c[0] - r, c[1]]], np.int32)
-            cv2.fillConvexPoly(img, pts, _bgr(rgb), cv2.LINE_AA)
-        _text(img, text, (x + sw + int(round(6 * s)), y), font, (235, 235, 235))
-        y += step
-
-
-# ================================================================================================
 # the one-call renderer
 # ================================================================================================
-def _overlay_scale(size) -> float:
-    return max(min(int(size[0]), int(size[1])) / 512.0, 0.5)
-
-
 def fit_camera(points, *, view: str | float = "front", size=(512, 512), projection: str = "orthographic",
                colorbar: bool = False, title_lines: int = 0, **fit_kwargs) -> Camera:
     """:meth:`Camera.fit` that keeps room for :func:`render_mesh`'s overlays: a band on the right
@@ -755,7 +439,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
                 edges: np.ndarray | None = None, wire_color=(18, 18, 22), wire_alpha: float = 0.5,
                 title: str = "", shading: str = "smooth", background=None, supersample: int = 2,
                 legend: bool = True, occlusion_tolerance: float | None = None,
-                marker_radius: float | None = None) -> np.ndarray:
+                marker_radius: float | None = None, label_info: dict | None = None) -> np.ndarray:
     """Render a preview image of a triangle mesh.
 
     Parameters
@@ -774,7 +458,9 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     region_colors : dict {name: vertex indices or Region} or list of Region, optional
         Vertices of each region get the fixed palette colour of the region (mouth red-ish, eyes
         blue-ish, outer border grey, others distinct; see :func:`usdface.preview.colormap.region_palette`);
-        later regions paint over earlier ones; other vertices are clay. A legend lists them.
+        later regions paint over earlier ones; other vertices are clay. Loop regions (outer border,
+        mouth, eyes: one vertex wide) also tint two rings of vertices around them (weights
+        :data:`BAND_WEIGHTS`) so they show at any size. A legend lists them.
     region_palette : dict {name: (r, g, b)}, optional
         Overrides of region colours (0..255).
     scalars : ndarray, shape (N,), optional
@@ -816,7 +502,15 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         World units a marker may lie behind the surface and still count as visible; default 1%
         of the mesh's bounding-box diagonal.
     marker_radius : float, optional
-        Dot radius in pixels; default scales with the image (4 px at 512, at least 3.5).
+        Dot radius in pixels; default scales with the image (4 px at 512, at least 3.5) and
+        shrinks to 0.35 of the median spacing of the points on screen (at least 1.5 px), so
+        glyphs never swamp a small picture.
+    label_info : dict, optional
+        Filled with the label layout (``boxes`` (K, 4) x0 y0 x1 y1, ``placed``, ``leader``,
+        ``anchors``, ``texts``, ``reserved`` boxes of glyphs, legends, colour bar and title,
+        ``radius``): labels are placed by :mod:`usdface.preview.labels` so that no two boxes
+        overlap, none covers a glyph, legend, colour bar or title, and all lie inside the image;
+        labels away from their point get a leader line.
 
     Returns
     -------
@@ -877,9 +571,15 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         pal = _region_palette([it[0] for it in items], [it[1] for it in items])
         for name, rgb in (region_palette or {}).items():
             pal[name] = _rgb(rgb, f"region_palette[{name!r}]")
-        for name, _role, idx in items:
+        for name, role, idx in items:
             if idx.size and (not np.issubdtype(idx.dtype, np.integer) or idx.min() < 0 or idx.max() >= n):
                 raise MeshError(f"preview: region {name!r} has vertex indices outside 0..{n - 1}")
+            if idx.size and (role in LOOP_ROLES or (role is None and name in LOOP_NAMES)):
+                # a loop of vertices (hole or border) is one vertex wide: shade a band around it
+                rgb = np.asarray(pal[name], dtype=np.float64) / 255
+                near, weight = _band_cached(points, tris, idx.astype(np.int64), BAND_WIDTH * diag)
+                colors[near] = colors[near] * (1 - weight[:, None]) + rgb * weight[:, None]
+        for name, _role, idx in items:
             colors[idx.astype(np.int64)] = np.asarray(pal[name], dtype=np.float64) / 255
             legend_entries.append(("swatch", pal[name], f"{name} ({np.unique(idx).size})"))
     elif scalars is not None:
@@ -898,9 +598,8 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     cam_hi = camera.resized(ss) if ss > 1 else camera
     buf = render_buffers(points, tris, cam_hi)
     out = _background(cam_hi.size, background)
-    bgr, pix = _shade(buf, points, tris, colors, shading=shading, specular=0.10 if scalars is None else 0.04,
-                      scalar_t=scalar_t, lut=lut)
-    out.reshape(-1, 3)[pix] = bgr
+    _shade(buf, points, tris, colors, out, shading=shading, specular=0.10 if scalars is None else 0.04,
+           scalar_t=scalar_t, lut=lut)
     ref = None
     if edges is not None:
         ref = _neighbourhood_max(buf.depth, 1)
@@ -912,19 +611,18 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     out = np.ascontiguousarray(out)
 
     # --- overlays at the final resolution -------------------------------------------------------
-    radius = max(4.0 * s, 3.5) if marker_radius is None else float(marker_radius)
-    font = 0.34 * s
     sets = []
     if markers is not None:
-        if ref is None:
-            ref = _neighbourhood_max(buf.depth, 1)
         iv, vis = point_visibility(markers, buf, tolerance=tol, _ref=ref)
         sets.append(("circle", markers, iv, vis, marker_labels, marker_rgb, marker_name))
     if extra is not None:
-        if ref is None:
-            ref = _neighbourhood_max(buf.depth, 1)
         iv, vis = point_visibility(extra, buf, tolerance=tol, _ref=ref)
         sets.insert(0, ("diamond", extra, iv, vis, extra_labels, extra_rgb, extra_name))
+    projected = [camera.project(pts)[0] for _, pts, *_ in sets]
+    if marker_radius is not None:
+        radius = float(marker_radius)
+    else:
+        radius = glyph_radius([xy[iv] for xy, (_, _, iv, *_) in zip(projected, sets)], (w, h), scale=s)
     if links:
         a_xy, _ = camera.project(markers)
         b_xy, _ = camera.project(extra)
@@ -934,10 +632,15 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
                 a = tuple(int(round((c - 0.5) * f)) for c in p)
                 b = tuple(int(round((c - 0.5) * f)) for c in q)
                 cv2.line(out, a, b, (230, 230, 230), 1, cv2.LINE_AA, 4)
-    point_legend = []
-    for shape, pts, iv, vis, labels, prgb, pname in sets:
-        xy, _ = camera.project(pts)
-        _draw_points(out, xy, iv, vis, labels, prgb, radius=radius, shape=shape, font=font)
+    point_legend, label_entries, glyph_boxes = [], [], []
+    for (shape, pts, iv, vis, labels, prgb, pname), xy in zip(sets, projected):
+        _draw_points(out, xy, iv, vis, prgb, radius=radius, shape=shape)
+        g = radius * (1.25 if shape == "diamond" else 1.0)
+        for m in np.flatnonzero(iv):
+            glyph_boxes.append((xy[m, 0] - 0.5 - 0.8 * g, xy[m, 1] - 0.5 - 0.8 * g,
+                                xy[m, 0] - 0.5 + 0.8 * g, xy[m, 1] - 0.5 + 0.8 * g))
+            if labels is not None and labels[m]:
+                label_entries.append((xy[m], labels[m], prgb, bool(vis[m])))
         nvis, nin = int(vis.sum()), int(iv.sum())
         text = f"{pname}: {nvis} visible"
         if nin - nvis:
@@ -945,15 +648,75 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         if pts.shape[0] - nin:
             text += f", {pts.shape[0] - nin} off"
         point_legend.append(("circle" if shape == "circle" else "diamond", prgb, text))
+    reserved = list(glyph_boxes)
     if lut is not None and legend:
-        _colorbar(out, lut, lo, hi, scalar_label, s, has_nan)
+        reserved.append(_colorbar(out, lut, lo, hi, scalar_label, s, has_nan))
     if legend:
-        _legend(out, legend_entries, s, corner="bottom-left")
-        _legend(out, point_legend[::-1], s, corner="bottom-right" if legend_entries else "bottom-left")
+        for box in (_legend(out, legend_entries, s, corner="bottom-left"),
+                    _legend(out, point_legend[::-1], s, corner="bottom-right" if legend_entries else "bottom-left")):
+            if box is not None:
+                reserved.append(box)
     if title:
         for k, line in enumerate(str(title).splitlines()):
-            _text(out, line, (10 * s, (22 + 18 * k) * s), (0.55 if k == 0 else 0.42) * s, (245, 245, 245))
+            size = (0.55 if k == 0 else 0.42) * s
+            org = (10 * s, (22 + 18 * k) * s)
+            _text(out, line, org, size, (245, 245, 245))
+            (tw, th), bl = cv2.getTextSize(line, 0, size, 3)
+            reserved.append((org[0] - 2, org[1] - th - 2, org[0] + tw + 2, org[1] + bl + 2))
+    if label_entries:
+        font = label_font(s)
+        obstacles = np.array(reserved, dtype=np.float64).reshape(-1, 4)
+        while True:  # a crowded small picture: smaller text before leaving labels out
+            placement, _, bases = place_point_labels((w, h), label_entries, radius=radius, font=font,
+                                                     obstacles=obstacles)
+            if not placement.n_dropped or font <= MIN_LABEL_FONT * 0.8:
+                break
+            font = max(font * 0.88, MIN_LABEL_FONT * 0.8)
+        draw_point_labels(out, label_entries, placement, bases, radius=radius, font=font)
+        if label_info is not None:
+            label_info.update(boxes=placement.boxes, placed=placement.placed, leader=placement.leader,
+                              anchors=np.array([e[0] for e in label_entries]) - 0.5, texts=[e[1] for e in label_entries],
+                              reserved=np.array(reserved, dtype=np.float64).reshape(-1, 4), radius=radius)
+    elif label_info is not None:
+        label_info.update(boxes=np.zeros((0, 4)), placed=np.zeros(0, bool), leader=np.zeros(0, bool),
+                          anchors=np.zeros((0, 2)), texts=[], reserved=np.array(reserved).reshape(-1, 4),
+                          radius=radius)
     return out
+
+
+#: region roles (and names, for plain dicts) that are loops of vertices, drawn with a band
+LOOP_ROLES = ("outerBorder", "mouth", "eye")
+LOOP_NAMES = ("outerBorder", "mouth", "leftEye", "rightEye")
+#: width of the band drawn around a loop region, as a fraction of the mesh's bounding-box diagonal
+BAND_WIDTH = 0.035
+
+
+_BAND_CACHE: dict = {}
+
+
+def _band_cached(points, tris, idx, width):
+    """:func:`_band` once per topology and region: a movie renders the same face hundreds of times
+    and the band is decoration (computed on the first pose seen)."""
+    import hashlib
+
+    key = (points.shape[0], hashlib.sha1(np.ascontiguousarray(tris).tobytes()).hexdigest(),
+           hashlib.sha1(idx.tobytes()).hexdigest())
+    hit = _BAND_CACHE.get(key)
+    if hit is None:
+        if len(_BAND_CACHE) >= 32:
+            _BAND_CACHE.clear()
+        hit = _BAND_CACHE[key] = _band(points, idx, width)
+    return hit
+
+
+def _band(points: np.ndarray, idx: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices within ``width`` of the vertex set ``idx`` and their band weight (0.85 at the
+    loop, fading to 0 at ``width``)."""
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(points[idx]).query(points, distance_upper_bound=width)
+    near = np.flatnonzero(np.isfinite(d))
+    return near, 0.85 * (1.0 - d[near] / width) ** 0.6
 
 
 def render_face(mesh, *, regions=None, wireframe: bool = False, **kwargs) -> np.ndarray:
@@ -966,89 +729,5 @@ def render_face(mesh, *, regions=None, wireframe: bool = False, **kwargs) -> np.
     return render_mesh(mesh.points, mesh.triangles(), **kwargs)
 
 
-# ================================================================================================
-# PNG output
-# ================================================================================================
-def write_png(path, image: np.ndarray) -> Path:
-    """Write an image as PNG atomically.
-
-    The image goes to a temporary ``.png`` file in the destination folder, is flushed to disk
-    (fsync), renamed over ``path`` (``os.replace``: readers see the old file or the new one, never
-    a partial one) and given mode 0644.
-
-    Parameters
-    ----------
-    path : str or Path
-        Destination, ending in ``.png``; its folder must exist.
-    image : ndarray, shape (H, W), (H, W, 3) or (H, W, 4), uint8 or uint16
-        Channel order BGR / BGRA (OpenCV's).
-
-    Returns
-    -------
-    Path
-        ``path``.
-
-    Raises
-    ------
-    InputError
-        The folder does not exist or is not writable, or the file cannot be replaced.
-    OptionError
-        ``path`` does not end in ``.png`` or ``image`` is not an image array.
-    ResourceError
-        The disk is full.
-    """
-    cv2 = _cv2()
-    path = Path(os.fspath(path))
-    if path.suffix.lower() != ".png":
-        raise OptionError(f"PNG output {str(path)!r} must end in .png")
-    img = np.asarray(image)
-    if not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] in (1, 3, 4))) or img.size == 0:
-        raise OptionError(f"cannot write {str(path)!r}: image must have shape (H, W), (H, W, 3) or (H, W, 4); "
-                          f"got {img.shape}")
-    if img.dtype not in (np.uint8, np.uint16):
-        raise OptionError(f"cannot write {str(path)!r}: image must be uint8 or uint16; got {img.dtype}")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"cannot write PNG {str(path)!r}: folder {str(folder)!r} does not exist")
-    if path.is_dir():
-        raise InputError(f"cannot write PNG {str(path)!r}: it is a folder")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=folder)
-    except OSError as exc:
-        raise InputError(f"cannot write PNG {str(path)!r}: {exc.strerror or exc}") from exc
-    os.close(fd)
-    try:
-        try:
-            ok = cv2.imwrite(tmp, np.ascontiguousarray(img))
-        except cv2.error as exc:
-            raise InputError(f"cannot write PNG {str(path)!r}: OpenCV failed: {exc}") from exc
-        if not ok:
-            raise InputError(f"cannot write PNG {str(path)!r}: OpenCV could not encode or write the image")
-        try:
-            with open(tmp, "rb+") as fh:
-                os.fsync(fh.fileno())
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, path)
-        except OSError as exc:
-            if getattr(exc, "errno", None) == 28:  # ENOSPC
-                raise ResourceError(f"cannot write PNG {str(path)!r}: disk full") from exc
-            raise InputError(f"cannot write PNG {str(path)!r}: {exc.strerror or exc}") from exc
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    try:  # make the rename itself durable
-        dfd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(dfd)
-        finally:
-            os.close(dfd)
-    except OSError:
-        pass
-    return path
-
-
-__all__ = ["BACKGROUND", "Buffers", "fit_camera", "point_visibility", "polygon_edges", "rasterize", "render_buffers",
+__all__ = ["BACKGROUND", "Buffers", "encode_png", "fit_camera", "point_visibility", "polygon_edges", "rasterize", "render_buffers",
            "render_face", "render_mesh", "vertex_normals", "write_png"]

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import ComputeError, InputError, MeshError, OptionError, list_names
 
 log = logging.getLogger("usdface")
@@ -37,7 +38,8 @@ __all__ = ["stereo", "detect", "landmarks_train", "register", "register_cli", "s
 # ================================================================================================
 def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", disparity=None, min_disparity=None,
            num_disparities=None, depth_range=None, vertical=None, surface: str = "grid", step: int = 2,
-           max_cycles: int = 3, time_limit=None, block_size: int = 5, max_stretch: float = 4.0) -> dict:
+           max_cycles: int = 3, time_limit=None, block_size: int = 5, max_stretch: float = 4.0,
+           fill: str = "background", ground_truth=None, bad_threshold: float = 2.0) -> dict:
     """Stereo pair -> disparity map (optional file) and scan mesh layer (metric, needs ``calib``).
 
     Parameters
@@ -49,9 +51,18 @@ def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", dispar
     calib : path, optional
         Calibration JSON (:mod:`usdface.scan.calibration`).
     method : str
-        ``sgbm`` (SGBM + WLS), ``graphcut`` or ``sgbm-plain``.
+        ``sgbm`` (default), ``sgbm-wls`` (SGBM + WLS filter) or ``graphcut``
+        (:mod:`usdface.scan.stereo`).
     disparity : path, optional
-        Disparity map to write (.exr, .tif, .pfm or .npy; NaN where unknown).
+        Disparity map to write (.exr, .tif, .pfm or .npy).
+    fill : {"background", "none"}
+        The disparity map (written and scored) is dense by default: pixels the method's checks
+        reject get the background disparity of their row (:func:`usdface.scan.stereo.fill_background`);
+        ``"none"`` leaves them NaN. The scan mesh uses the accepted pixels only, either way.
+    ground_truth : path, optional
+        Ground-truth disparity (.npz, .pfm, .exr, .npy, .tif; +inf or NaN where unknown) of the
+        first image: the summary gets the bad-pixel rate of the map (|d - gt| > ``bad_threshold``
+        px over the pixels with finite ground truth, missing disparities counted bad).
     min_disparity, num_disparities : int, optional
         Disparity range (default: from ``depth_range`` with a calibration, else 0 and 64).
     depth_range : (near, far), optional
@@ -66,15 +77,26 @@ def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", dispar
     from ..io.images import FLOAT_MAP_SUFFIXES, check_image_output, read_image, write_float_map
     from ..mesh.model import FaceMesh
     from ..scan.calibration import read_calibration, rectify_pair
-    from ..scan.stereo import check_rectified, compute_disparity, disparity_range
+    from ..scan.stereo import METHODS, bad_pixel_rate, check_rectified, compute_disparity, disparity_range, fill_background
     from ..scan.surface import reconstruct_surface
     from ..usd.layers import check_output_path, provenance
 
     t0 = time.perf_counter()
-    if output is None and disparity is None:
-        raise OptionError("stereo: nothing to write: give -o SCAN.usdc and/or --disparity DISP.exr")
-    out = check_output_path(output) if output is not None else None
+    inputs = {"left": left, "right": right, "--calib": calib, "--ground-truth": ground_truth}
+    out = check_output_path(output, inputs=inputs) if output is not None else None
+    refuse_overwriting_inputs({"--disparity": disparity}, inputs)
     disp_path = check_image_output(disparity, suffixes=FLOAT_MAP_SUFFIXES, option="--disparity") if disparity else None
+    if method not in METHODS:
+        raise OptionError(f"--method must be one of {', '.join(METHODS)}; got {method!r}")
+    if fill not in ("background", "none"):
+        raise OptionError(f"--fill must be background or none; got {fill!r}")
+    if out is None and disparity is None and ground_truth is None:
+        raise OptionError("stereo: nothing to do: give -o SCAN.usdc, --disparity DISP.exr and/or --ground-truth GT")
+    gt = None
+    if ground_truth is not None:
+        from ..io.images import read_float_map
+
+        gt = read_float_map(ground_truth)
     if out is not None and calib is None:
         raise OptionError("stereo: a metric scan (-o) needs the camera calibration: --calib CALIB.json "
                           '({"f", "cx", "cy", "baseline", "doffs", "vertical"} for a rectified pair, '
@@ -112,14 +134,27 @@ def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", dispar
     num_disparities = 64 if num_disparities is None else int(num_disparities)
     res = compute_disparity(a, b, method=method, min_disparity=min_disparity, num_disparities=num_disparities,
                             vertical=is_vertical, block_size=block_size, max_cycles=max_cycles, time_limit=time_limit)
-    d = np.where(res.valid, res.disparity, np.nan).astype(np.float32)
+    d = np.where(res.valid, res.disparity, np.nan).astype(np.float32)  # accepted pixels: the scan's
+    dmap = fill_background(res.disparity, res.valid, vertical=is_vertical) if fill == "background" else d
     summary = {"left": str(left), "right": str(right), "method": method, "size": [a.shape[1], a.shape[0]],
                "vertical": is_vertical, "minDisparity": res.min_disparity, "numDisparities": res.num_disparities,
-               "validFraction": float(np.isfinite(d).mean()), "rectifiedCheck": check,
+               "validFraction": float(np.isfinite(d).mean()), "rectifiedCheck": check, "fill": fill,
                "disparitySeconds": round(float(res.info.get("seconds", math.nan)), 3)}
     text = [f"{method}: disparities {res.min_disparity}..{res.min_disparity + res.num_disparities - 1} px on "
             f"{a.shape[1]}x{a.shape[0]}{' (vertical pair)' if is_vertical else ''}, "
             f"{100 * summary['validFraction']:.1f}% of pixels valid, {summary['disparitySeconds']:.2f} s"]
+    if gt is not None:
+        if rect is not None:
+            raise OptionError("--ground-truth: the pair was rectified here, so the map is not in the ground truth's "
+                              "pixels; give a rectified pair with its rectified calibration")
+        if gt.shape != dmap.shape:
+            raise InputError(f"--ground-truth {ground_truth}: {gt.shape[1]}x{gt.shape[0]} but the images are "
+                             f"{dmap.shape[1]}x{dmap.shape[0]}")
+        score = bad_pixel_rate(dmap, gt, threshold=bad_threshold)
+        summary["groundTruth"] = {"file": str(ground_truth), "threshold": bad_threshold, **score}
+        text.append(f"bad pixels (|d - gt| > {bad_threshold:g} px over the {score['pixels']} pixels with ground "
+                    f"truth, missing counted bad): {100 * score['bad']:.1f}%  (over the {100 * score['density']:.1f}% "
+                    f"given: {100 * score['bad_known']:.1f}%; map fill: {fill})")
     mesh = prov = None
     if out is not None:
         depth = rcal.depth(d)
@@ -142,10 +177,12 @@ def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", dispar
     written = []
     try:
         if disp_path is not None:
-            write_float_map(disp_path, d)
+            write_float_map(disp_path, dmap)
             written.append(disp_path)
             summary["disparity"] = str(disp_path)
-            text.append(f"wrote {disp_path}: disparity map (float32, NaN where unknown)")
+            text.append(f"wrote {disp_path}: disparity map (float32, "
+                        + ("rejected pixels filled with the background disparity)" if fill == "background"
+                           else "NaN where rejected)"))
         if out is not None:
             from ..usd.mesh_layer import write_mesh_layer
 
@@ -188,6 +225,7 @@ def detect(image, output, *, preview=None, aam=None, min_size=None, min_neighbor
     from ..scan.detect import detect_faces, draw_detections, features_dict
     from ..scan.landmarks import _atomic_text
 
+    refuse_overwriting_inputs({"-o": output, "--preview": preview}, {"image": image, "--aam": aam})
     out = Path(output)
     if out.suffix.lower() != ".json":
         raise OptionError(f"-o {out}: expected a .json features file")
@@ -255,6 +293,7 @@ def landmarks_train(images, output, *, landmarks=None, points_dir=None, augment=
     from ..scan.detect import largest_face_box
     from ..scan.landmarks import FACE_LANDMARKS, read_landmarks
 
+    refuse_overwriting_inputs({"-o": output}, {"images": [str(p) for p in images], "--landmarks": landmarks})
     out = Path(output)
     if out.suffix != ".npz":
         raise OptionError(f"-o {out}: an AAM model is written as .npz")
@@ -429,7 +468,10 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
     from ..usd.mesh_layer import read_mesh_layer, write_mesh_layer
 
     t0 = time.perf_counter()
-    out = check_output_path(output)
+    inputs = {"--generic": generic, "--scan": scan, "--landmarks": landmarks,
+              "--generic-landmarks": generic_landmarks, "--layout": layout, "--image": image, "--aam": aam}
+    out = check_output_path(output, inputs=inputs)
+    refuse_overwriting_inputs({"--layout-output": layout_output}, inputs)
     gpath = Path(generic)
     mesh, regions = read_mesh_layer(generic)
     if not regions:
@@ -562,7 +604,7 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
 # ================================================================================================
 def register_cli(subparsers) -> None:
     """Add ``stereo``, ``detect``, ``landmarks train`` and ``register`` to the ``usdface`` command."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "stereo", help="stereo pair -> disparity map and metric scan mesh layer",
@@ -572,10 +614,18 @@ def register_cli(subparsers) -> None:
     p.add_argument("left", help="left (or top) image")
     p.add_argument("right", help="right (or bottom) image")
     p.add_argument("--calib", help="calibration JSON (needed for -o)")
-    p.add_argument("--method", choices=["sgbm", "graphcut", "sgbm-plain"], default="sgbm",
-                   help="sgbm: SGBM + WLS filter (fast, default); graphcut: KZ1-style alpha-expansion (quality)")
+    p.add_argument("--method", choices=["sgbm", "sgbm-wls", "graphcut"], default="sgbm",
+                   help="sgbm: semi-global matching with consistency checks (fast, default); sgbm-wls: with the WLS "
+                        "edge-aware filter; graphcut: KZ1-style alpha-expansion (best, about 100x slower)")
     p.add_argument("-o", "--output", help="scan mesh layer to write (.usdc)")
-    p.add_argument("--disparity", help="disparity map to write (.exr, .tif, .pfm, .npy; NaN where unknown)")
+    p.add_argument("--disparity", help="disparity map to write (.exr, .tif, .pfm, .npy)")
+    p.add_argument("--fill", choices=["background", "none"], default="background",
+                   help="pixels of the disparity map that the checks reject: the background disparity of their row "
+                        "(default) or NaN; the scan uses accepted pixels only")
+    p.add_argument("--ground-truth", metavar="GT", help="ground-truth disparity (.npz .pfm .exr .npy .tif; inf/NaN where "
+                   "unknown): print the bad-pixel rate of the map (missing pixels count as bad)")
+    p.add_argument("--bad-threshold", type=float, default=2.0, metavar="PX",
+                   help="--ground-truth: a pixel is bad when |d - gt| exceeds this (default 2 px)")
     p.add_argument("--min-disparity", type=int, help="smallest disparity searched (px)")
     p.add_argument("--num-disparities", type=int, help="number of disparities searched (default 64)")
     p.add_argument("--depth-range", type=float, nargs=2, metavar=("NEAR", "FAR"),
@@ -591,7 +641,8 @@ def register_cli(subparsers) -> None:
                                          disparity=a.disparity, min_disparity=a.min_disparity,
                                          num_disparities=a.num_disparities, depth_range=a.depth_range,
                                          vertical=a.vertical, surface=a.surface, step=a.step,
-                                         max_cycles=a.max_cycles, time_limit=a.time_limit))
+                                         max_cycles=a.max_cycles, time_limit=a.time_limit, fill=a.fill,
+                                         ground_truth=a.ground_truth, bad_threshold=a.bad_threshold))
 
     p = subparsers.add_parser(
         "detect", help="Haar face/eye/mouth detection and AAM landmarks -> features JSON",

@@ -7,9 +7,11 @@ __all__ = ["batch", "register_cli"]
 
 
 def batch(manifest, *, workers=None, scheduler=None, resume=False, force=False, cache=None, out_root=None,
-          summary=None, quiet=False) -> dict:
+          summary=None, quiet=False, report=None) -> dict:
     """Load and check the manifest (every missing file at once, before any work), run its shots.
 
+    ``report``: also write the HTML batch report (:func:`usdface.processors.report.batch_report`)
+    to this file, or beside the batch summary (``.html``) when ``True``.
     Returns the batch summary (``_text``: the shot table; ``_exit``: 1 if any shot failed).
     """
     from ..batch.manifest import load_manifest
@@ -21,12 +23,23 @@ def batch(manifest, *, workers=None, scheduler=None, resume=False, force=False, 
     if workers is not None and scheduler:
         raise OptionError("--workers sizes the local cluster; with --scheduler the farm's workers run the shots")
     m = load_manifest(manifest, out_root=out_root)
-    return run_batch(m, workers=workers, scheduler=scheduler, resume=resume, force=force, cache=cache,
-                     summary_path=summary, quiet=quiet)
+    if report not in (None, False, True):
+        from .report import _check_output
+
+        _check_output(report)  # an unwritable report fails before the shots run
+    result = run_batch(m, workers=workers, scheduler=scheduler, resume=resume, force=force, cache=cache,
+                       summary_path=summary, quiet=quiet)
+    if report not in (None, False):
+        from .report import batch_report
+
+        rep = batch_report(result, None if report is True else report)
+        result["report"] = rep["output"]
+        result["_text"] = list(result.get("_text", [])) + rep["_text"]
+    return result
 
 
 def register_cli(subparsers) -> None:
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "batch", help="run a shot manifest (TOML) in parallel with Dask: local cores or a farm",
@@ -51,6 +64,9 @@ def register_cli(subparsers) -> None:
                    help="resolve relative outputs, cache and summary against DIR instead of the manifest's folder")
     p.add_argument("--summary", metavar="FILE.json",
                    help="batch summary to write (default: the manifest's, else usdface-batch-summary.json)")
+    p.add_argument("--report", nargs="?", const=True, metavar="FILE.html",
+                   help="also write an HTML report of the batch (table, thumbnails, each shot's plots; needs the "
+                        "'media' extra); default: beside the batch summary, .html")
     add_common_options(p)
     p.set_defaults(func=_cmd_batch)
 
@@ -58,4 +74,4 @@ def register_cli(subparsers) -> None:
 def _cmd_batch(args) -> dict:
     return batch(args.manifest, workers=args.workers, scheduler=args.scheduler, resume=args.resume,
                  force=args.force, cache=args.cache, out_root=args.out_root, summary=args.summary,
-                 quiet=args.quiet)
+                 quiet=args.quiet, report=args.report)

@@ -34,7 +34,7 @@ def distances(mesh_path, binding_path, output, *, method="hybrid", backend="grap
 
     if method not in METHODS:
         raise OptionError(f"--method {method}: expected one of {', '.join(METHODS)}")
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"--mesh": mesh_path, "--binding": binding_path})
     mesh, regions = read_mesh_layer(mesh_path)
     binding = read_binding(open_stage(binding_path, what="binding"), source=str(binding_path))
     if binding.triangle_vertices.max() >= mesh.n_points:

@@ -10,12 +10,11 @@ variant, and the vertex errors are reported per face region (see
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError, InputError, OptionError
+from ..errors import InputError, OptionError
 
 __all__ = ["load_shapes", "binding_from_layout", "evaluate_shapes", "register_cli"]
 
@@ -35,25 +34,9 @@ def load_shapes(path) -> tuple[list[str], np.ndarray | None, np.ndarray]:
     neutral : ndarray (N, 3) or None
     deltas : ndarray (F, N, 3) float64
     """
-    path = Path(os.fspath(path))
-    if not path.is_file():
-        raise InputError(f"--shapes {path}: no such file")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            keys = set(z.files)
-            missing = [k for k in ("names", "deltas") if k not in keys]
-            if missing:
-                raise FormatError(f"shapes file {path}: missing array(s) {', '.join(missing)}; has {', '.join(sorted(keys))}")
-            names = [str(n) for n in z["names"]]
-            deltas = np.asarray(z["deltas"], dtype=np.float64)
-            neutral = np.asarray(z["neutral"], dtype=np.float64) if "neutral" in keys else None
-    except (OSError, ValueError) as exc:
-        raise FormatError(f"shapes file {path} is not a readable .npz: {exc}") from None
-    if deltas.ndim != 3 or deltas.shape[0] != len(names) or deltas.shape[2] != 3:
-        raise FormatError(f"shapes file {path}: deltas must have shape ({len(names)}, N, 3); got {deltas.shape}")
-    if not np.isfinite(deltas).all():
-        raise FormatError(f"shapes file {path}: deltas contain NaN or infinite values")
-    return names, neutral, deltas
+    from ..blendshape.rig import read_shapes_npz
+
+    return read_shapes_npz(path)
 
 
 def binding_from_layout(mesh, layout):
@@ -188,25 +171,13 @@ def evaluate_shapes(mesh_path, shapes_path, *, layout=None, binding=None, method
 
 
 def _write_text(path, text: str) -> Path:
-    """Write ``text`` atomically (temporary file in the same folder, then rename)."""
+    """Write ``text`` atomically (:func:`usdface.fileutil.write_text_atomic`)."""
+    from ..fileutil import write_text_atomic
+
     path = Path(os.fspath(path))
     if not path.parent.is_dir():
         raise OptionError(f"-o {path}: folder {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
+    return write_text_atomic(path, text)
 
 
 def _cmd_evaluate(args) -> dict:
@@ -221,7 +192,7 @@ def _cmd_evaluate(args) -> dict:
 
 def register_cli(subparsers) -> None:
     """Add ``usdface evaluate`` to the CLI's subparsers."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "evaluate", help="transfer quality against ground-truth expression shapes (markdown table)",

@@ -1,6 +1,7 @@
 """`usdface import-mesh`: a mesh file (OBJ/PLY/STL/OFF or USD) -> mesh layer with hole regions."""
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -8,10 +9,15 @@ import numpy as np
 from ..mesh.model import FaceMesh
 from ..usd.layers import USD_SUFFIXES, check_output_path, provenance
 
+log = logging.getLogger("usdface")
+
 
 def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
-    """Read a mesh file or a USD mesh layer; returns (mesh, regions already on it)."""
-    if Path(path).suffix.lower() in USD_SUFFIXES:
+    """Read a mesh file, a USD mesh layer or (Python API) an in-memory stage or layer; returns
+    (mesh, regions already on it)."""
+    from ..usd.layers import is_in_memory
+
+    if is_in_memory(path) or Path(path).suffix.lower() in USD_SUFFIXES:
         from ..usd.mesh_layer import read_mesh_layer
 
         mesh, regions = read_mesh_layer(path)
@@ -36,18 +42,22 @@ def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
 
 def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
     """Import a mesh, find its holes (outer border, mouth, eyes) as regions, write the mesh layer."""
-    from ..mesh.topology import find_hole_regions, mesh_topology
+    from ..mesh.topology import subset_faces, border_surface, boundary_loops, find_hole_regions, mesh_topology
     from ..usd.mesh_layer import write_mesh_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"input": input})
     mesh, regions = load_mesh(input, units=units)
     mesh.check_degenerate()
     if up_axis.upper() == "Z":  # Z-up source: (x, y, z) -> (x, z, -y)
         p = mesh.points
         mesh = mesh.with_points(np.stack([p[:, 0], p[:, 2], -p[:, 1]], axis=1))
     topo = mesh_topology(mesh)
+    surface = border_surface(mesh)
+    if not surface.clean:
+        # the run goes on: the border and holes come from the rest of the surface
+        log.warning("%s", surface.message(str(input)))
     if not regions:
-        regions = find_hole_regions(mesh)
+        regions = find_hole_regions(mesh, loops=boundary_loops(subset_faces(mesh, surface.faces)))
     prov = provenance("import-mesh", options={"units": units, "up_axis": up_axis}, inputs={"mesh": input})
     write_mesh_layer(out, mesh, regions, prov=prov)
     sizes = {int(k): int(v) for k, v in zip(*np.unique(mesh.face_vertex_counts, return_counts=True))}
@@ -55,7 +65,7 @@ def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
         "output": str(out), "source": str(input), "points": mesh.n_points, "faces": mesh.n_faces,
         "faceSizes": sizes, "units": mesh.units, "uvs": mesh.uvs is not None,
         "boundaryLoops": topo["boundary_loops"], "components": topo["components"],
-        "nonManifoldEdges": topo["non_manifold_edges"],
+        "nonManifoldEdges": topo["non_manifold_edges"], "borderSurface": surface.summary(),
         "regions": {r.name: {"role": r.role, "vertices": int(r.indices.size)} for r in regions},
     }
     summary["_text"] = [

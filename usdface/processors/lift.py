@@ -76,20 +76,32 @@ def _bound_surface(mesh, binding, layout):
 
 
 def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="zero", neutral=None,
-         rate=None, min_cos=None) -> dict:
-    """Lift 2D tracks to a 3D capture layer on the mesh; returns the summary."""
-    from ..capture.lift import (DEFAULT_MIN_COS, check_marker_sets, fit_weak_perspective, lift_displacements,
-                                surface_normals)
-    from ..capture.model import Capture
-    from ..usd.capture_layer import write_capture_layer
-    from ..usd.mesh_layer import read_mesh_layer
+         rate=None, min_cos=None, mesh_units=None, allow=()) -> dict:
+    """Lift 2D tracks to a 3D capture layer on the mesh; returns the summary.
 
-    out = check_output_path(output)
+    ``mesh_path``: a mesh layer or any mesh file `usdface run` accepts (OBJ, PLY, ...; ``mesh_units``
+    for files without units, default cm). The neutral tracks' fit to the markers' bound points is
+    judged like a 3D layout fit (:func:`usdface.mesh.judgement.fit_residual_findings`, code
+    ``fit-residual``): a marker more than 25% of the face's image size off, or an rms beyond 15%,
+    stops the lift unless ``allow`` names the check.
+    """
+    from ..capture.lift import DEFAULT_MIN_COS, check_marker_sets, lift_displacements, surface_normals
+    from ..capture.model import Capture
+    from ..capture.plausibility import report
+    from ..usd.capture_layer import write_capture_layer
+    from .import_mesh import load_mesh
+
+    out = check_output_path(output, inputs={"tracks": tracks_path, "--mesh": mesh_path, "--binding": binding,
+                                            "--layout": layout})
     if depth not in ("tangent", "zero"):
         raise OptionError(f"--depth: expected tangent or zero; got {depth!r}")
     min_cos = DEFAULT_MIN_COS if min_cos is None else float(min_cos)
     tracks = read_tracks(tracks_path, rate=rate)
-    mesh, _ = read_mesh_layer(mesh_path)
+    from ..usd.layers import is_in_memory
+
+    if not is_in_memory(mesh_path) and not Path(mesh_path).is_file():
+        raise InputError(f"--mesh {mesh_path}: no such file")
+    mesh, _ = load_mesh(mesh_path, units=mesh_units)
     names, tri, bary, place_src = _bound_surface(mesh, binding, layout)
     check_marker_sets(tracks.names, names, tracks=f"tracks {tracks_path}", layout=place_src)
     order = [names.index(n) for n in tracks.names]  # layout rows in the tracks' order
@@ -103,7 +115,8 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
     if not ok.all():
         raise MarkerError(f"tracks {tracks_path}: marker(s) {', '.join(np.array(tracks.names)[~ok])} invalid at the "
                           f"neutral frame {n_frame}; choose another neutral frame (--neutral)")
-    cam = fit_weak_perspective(uv[n_frame], bound)
+    cam, findings = _fit_camera(uv[n_frame], bound, tracks.names, what=f"tracks {tracks_path} on {place_src}")
+    checked = report(findings, allow=allow)
     normals = surface_normals(mesh.points, mesh.triangles(), tri, bary)
     disp = lift_displacements(uv, n_frame, cam, normals=normals, depth=depth, min_cos=min_cos)
     positions = bound[None] + disp
@@ -115,11 +128,12 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
                       start_frame=tracks.start_frame, neutral_frame=n_frame, source=str(tracks_path),
                       history=(step,))
     grazing = int((np.abs(normals @ cam.view_direction) < min_cos).sum())
-    face_px = cam.scale * float(np.ptp(bound, axis=0).max())
-    if cam.residual_rms > 0.05 * face_px:  # more than 5% of the face's size in the image
-        log.warning("the neutral tracks fit the layout poorly (rms %.2f px on a face %.0f px wide): check the "
-                    "neutral frame, the layout and the track names", cam.residual_rms, face_px)
-    prov = provenance("lift", options={"depth": depth, "neutral": n_frame, "min_cos": min_cos},
+    lift_options = {"depth": depth, "neutral": n_frame, "min_cos": min_cos}
+    if allow:
+        from ..capture.plausibility import parse_allow
+
+        lift_options["allow"] = sorted(parse_allow(allow))
+    prov = provenance("lift", options=lift_options,
                       inputs={"tracks": tracks_path, "mesh": mesh_path, "binding": binding, "layout": layout})
     write_capture_layer(out, capture, prov=prov)
     moved = np.linalg.norm(disp, axis=2)
@@ -130,6 +144,7 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
         "residualRms": cam.residual_rms, "residualMax": cam.residual_max,
         "grazingMarkers": grazing, "invalidSamples": int((~np.isfinite(uv).all(axis=2)).sum()),
         "maxDisplacement": float(np.nanmax(moved)) if np.isfinite(moved).any() else 0.0,
+        "plausibility": checked,
     }
     summary["_text"] = [
         f"wrote {out}: {tracks.n_markers} markers x {tracks.n_frames} frames lifted to {mesh.units} on the mesh "
@@ -141,9 +156,37 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
     return summary
 
 
+def _fit_camera(image_points, model_points, names, *, what: str):
+    """Weak-perspective camera fitted robustly, and the judgement of its residuals.
+
+    The residual of a correct fit is the difference between the performer's marker placement and
+    the layout's (about 5% of the face on the sample clip; a 3D layout fit of the same take leaves
+    6%), so it is judged by the same rule as a 3D layout fit. A marker far off (a wrong seed, a
+    mislabelled track) is set aside and the camera refitted without it, as the 3D fit does.
+    Returns (camera, findings).
+    """
+    from ..capture.lift import fit_weak_perspective
+    from ..mesh.judgement import FIT_MARKER_FRACTION, MAX_EXCLUDED_FRACTION, extent, fit_residual_findings
+
+    uv = np.asarray(image_points, dtype=np.float64)
+    x = np.asarray(model_points, dtype=np.float64)
+    kept = np.ones(len(uv), dtype=bool)
+    while True:
+        cam = fit_weak_perspective(uv[kept], x[kept])
+        res = np.linalg.norm(cam.project(x) - uv, axis=1)
+        face_px = cam.scale * extent(x)  # the face's size in the image, as a 3D fit measures it
+        limit = FIT_MARKER_FRACTION * face_px
+        worst = int(np.argmax(np.where(kept, res, -np.inf)))
+        if res[worst] <= limit or (~kept).sum() >= int(MAX_EXCLUDED_FRACTION * len(uv)) or kept.sum() <= 4:
+            break
+        kept[worst] = False
+    findings = fit_residual_findings(list(names), res, res <= limit, face_px, units="px", what=what)
+    return cam, findings
+
+
 def register_cli(sub) -> None:
     """Add `usdface lift` to the CLI."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = sub.add_parser("lift", help="lift 2D marker tracks (video) to a 3D capture layer on the mesh",
                        description="Map 2D image tracks of face markers to 3D motion on a character mesh: fit a "
@@ -152,7 +195,9 @@ def register_cli(sub) -> None:
                                    "the depth change from the face surface (tangent plane) or zero. Writes a "
                                    "capture layer (mesh units, same marker names) for bind/transfer/skel.")
     p.add_argument("tracks", help="2D track layer (.usd*) or 2D capture CSV (pixels)")
-    p.add_argument("--mesh", required=True, help="mesh layer")
+    p.add_argument("--mesh", required=True, help="mesh layer, or a mesh file (OBJ, PLY, STL, OFF... as `run` takes)")
+    p.add_argument("--mesh-units", choices=["mm", "cm", "dm", "m", "in", "ft"],
+                   help="units of a mesh file that does not say (OBJ: default cm)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--binding", help="binding layer giving the markers' bound points")
     src.add_argument("--layout", help="marker layout JSON (usdface-layout/1) on the mesh")
@@ -161,7 +206,12 @@ def register_cli(sub) -> None:
     p.add_argument("--neutral", type=int, metavar="FRAME", help="neutral frame index (default: the tracks')")
     p.add_argument("--rate", type=float, metavar="HZ", help="track rate when a CSV does not declare it")
     p.add_argument("-o", "--output", required=True, help="capture layer to write (.usdc)")
+    from ..cliargs import add_options, options_from_args
+    from ..options import PlausibilityOptions
+
+    add_options(p, PlausibilityOptions)
     add_common_options(p)
     p.set_defaults(func=lambda args: lift(args.tracks, args.mesh, args.output, binding=args.binding,
                                           layout=args.layout, depth=args.depth, neutral=args.neutral,
-                                          rate=args.rate))
+                                          rate=args.rate, mesh_units=args.mesh_units,
+                                          allow=options_from_args(PlausibilityOptions, args).allow))

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import OptionError
 
 
@@ -46,9 +47,11 @@ def preview(path, output, *, frame=None, frames=None, view="front", size=768, co
             labels=False) -> dict:
     """Render ``path`` at ``frame`` (or a contact sheet of ``frames``) to the PNG ``output``."""
     from ..preview import contact_sheet, fit_camera, write_png
+    from ..usd.evaluate import FaceEvaluator
     from ..usd.layers import open_stage
-    from ..usd.scene import read_points_at, read_scene_frame
+    from ..usd.scene import read_scene_frame
 
+    refuse_overwriting_inputs({"-o": output}, {"file": path, "--reference": reference})
     if not str(output).lower().endswith(".png"):
         raise OptionError(f"-o {output}: expected a .png file")
     if color == "error" and reference is None:
@@ -62,14 +65,21 @@ def preview(path, output, *, frame=None, frames=None, view="front", size=768, co
         outside = [t for t in times if t is not None and not lo <= t <= hi]
         if outside:
             raise OptionError(f"--frame {outside[0]:g}: outside the layer's time range {lo:g}..{hi:g}")
-    scenes = [read_scene_frame(path, time=t, stage=stage) for t in times]
+    evaluator = FaceEvaluator(stage, source=str(path))  # skinning and blend shapes as UsdSkel evaluates them
+    scenes = [read_scene_frame(path, time=t, evaluator=evaluator) for t in times]
     cell = size if len(scenes) == 1 else max(256, size // min(len(scenes), 4))
     everything = [s.mesh.points for s in scenes] + [scenes[0].rest_points]
     camera = fit_camera(everything, view=view, size=(cell, cell), colorbar=color not in ("regions", "none"),
                         title_lines=2)
     images, captions = [], []
     name = str(path).rsplit("/", 1)[-1]
-    refs = [read_points_at(reference, s.time) if reference else None for s in scenes]
+    refs = [None] * len(scenes)
+    if reference is not None:
+        ref = FaceEvaluator.open(reference, what="--reference")
+        if ref.n_points != evaluator.n_points:
+            raise OptionError(f"--reference {reference}: its face mesh has {ref.n_points} points, {name} has "
+                              f"{evaluator.n_points}")
+        refs = [ref.points(s.time) for s in scenes]
     shared = None
     if color in ("displacement", "error"):  # one colour scale for every frame of a sheet
         top = max(float(_scalars(s, color, r).max()) for s, r in zip(scenes, refs))

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import InputError, MarkerError, OptionError, list_names
 from ..usd.layers import check_output_path, provenance
 
@@ -121,7 +122,8 @@ def muscles(mesh_path, output, *, layout=None, binding=None, from_rig=None, forc
     from ..tissue.rig import default_rig, face_landmarks, landmark_correspondence, warp_rig
     from ..usd.muscle_layer import read_rig_layer, write_rig_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"--mesh": mesh_path, "--layout": layout, "--binding": binding,
+                                            "--from-rig": from_rig})
     t0 = time.perf_counter()
     mesh, regions = _load_mesh(mesh_path)
     markers = _marker_positions(mesh, layout=layout, binding=binding)
@@ -197,8 +199,13 @@ def volume_stats(sim) -> dict:
 
 
 def simulate(mesh_path, rig_path, output, *, expression=None, timeline=None, integrator="implicit", dt=None,
-             rate=24.0, ramp=12, hold=12, intensity=1.0, start_frame=1, tissue=None, backend="auto") -> dict:
+             rate=24.0, ramp=12, hold=12, intensity=1.0, start_frame=0, tissue=None, backend="auto") -> dict:
     """Simulate an expression preset or a contraction timeline and write an animation layer.
+
+    The layer (``output``) stands alone (it sublayers the rig and the mesh); beside it,
+    ``<stem>_shot.usda`` is the shot stage to open (:func:`shot_path_for`). Time codes are frame
+    numbers from 0: a timeline's keys stay at their frames, and before its first key the timeline
+    holds the first key's values.
 
     Returns the summary: frames, steps, wall time, whether the last frame is at equilibrium, the
     energy, the volume change, and the displacement of facial landmarks at the last frame.
@@ -208,7 +215,8 @@ def simulate(mesh_path, rig_path, output, *, expression=None, timeline=None, int
     from ..tissue.expressions import expression_timeline, read_timeline
     from ..usd.muscle_layer import read_rig_layer, write_tissue_animation_layer
 
-    out = check_output_path(output, suffixes=(".usdc", ".usd"))
+    out = check_output_path(output, suffixes=(".usdc", ".usd"),
+                            inputs={"--mesh": mesh_path, "--rig": rig_path, "--timeline": timeline})
     if (expression is None) == (timeline is None):
         raise OptionError("simulate: give exactly one of --expression NAME or --timeline T.json")
     t0 = time.perf_counter()
@@ -246,9 +254,11 @@ def simulate(mesh_path, rig_path, output, *, expression=None, timeline=None, int
         write_tissue_animation_layer(out, chunks(), mesh_path=mesh_path, rig_path=rig_path,
                                      rest_points=sim.model.mesh.points, start=float(frames[0]), rate=tl.rate,
                                      n_frames=n, units=mesh.units, muscle_names=rig.names, contractions=contr,
-                                     jaw=jaw, prov=prov, time_codes=frames, progress=bar)
+                                     jaw=jaw, prov=prov, time_codes=frames, progress=bar, mesh=mesh)
     finally:
         bar.close()
+    shot = _write_tissue_shot(out, [out], rate=tl.rate, start=float(frames[0]), end=float(frames[-1]),
+                              units=mesh.units)
     # how still is the last frame: the net motion over one more frame interval
     before = sim.skin()
     sim.advance(1.0 / tl.rate)
@@ -258,7 +268,7 @@ def simulate(mesh_path, rig_path, output, *, expression=None, timeline=None, int
     lmv = _landmark_vertices(mesh, rig)
     vol = volume_stats(sim)
     summary = {
-        "output": str(out), "frames": int(n), "rate": tl.rate, "integrator": integrator, "dt": sim.dt,
+        "output": str(out), "shot": shot, "frames": int(n), "rate": tl.rate, "integrator": integrator, "dt": sim.dt,
         "steps": int(sim.steps), "seconds": time.perf_counter() - t0, "springs": sim.model.n_springs,
         "elements": sim.model.n_elements, "finalSpeedCmPerS": drift, "atEquilibrium": drift < 0.05,
         "energyMax": float(max(energy)), "energyFinal": float(energy[-1]),
@@ -268,7 +278,7 @@ def simulate(mesh_path, rig_path, output, *, expression=None, timeline=None, int
     u = mesh.units or "units"
     summary["_text"] = [
         f"wrote {out}: {n} frames at {tl.rate:g} fps ({integrator} Euler, dt {sim.dt:.4g} s, {sim.steps} steps, "
-        f"{summary['seconds']:.1f} s)",
+        f"{summary['seconds']:.1f} s); shot stage {shot}",
         f"  model: {sim.model.n_springs} springs, {sim.model.n_elements} prism elements; max displacement "
         f"{summary['maxDisplacement']:.2f} {u}; last frame {'at equilibrium' if summary['atEquilibrium'] else 'moving'} "
         f"({drift:.3f} cm/s)",
@@ -276,6 +286,21 @@ def simulate(mesh_path, rig_path, output, *, expression=None, timeline=None, int
         f"elements max {vol['element']['maxAbs']:.1%} (p99 {vol['element']['p99']:.1%})",
     ]
     return summary
+
+
+def shot_path_for(output) -> Path:
+    """The shot stage written beside a simulate / fit-muscles layer: ``<stem>_shot.usda``."""
+    out = Path(output)
+    return out.with_name(f"{out.stem}_shot.usda")
+
+
+def _write_tissue_shot(output, layers, *, rate, start, end, units, stabilized_capture=False) -> str:
+    from ..usd.analysis_layer import write_shot_stage
+
+    shot = shot_path_for(output)
+    write_shot_stage(shot, layers=list(layers), rate=rate, start=start, end=end, units=units,
+                     stabilized_capture=stabilized_capture)
+    return str(shot)
 
 
 # -- fit-muscles --------------------------------------------------------------------------------
@@ -323,7 +348,9 @@ def fit_muscles(mesh_path, rig_path, capture_path, binding_path, output, *, step
     from ..usd.mesh_layer import read_binding
     from ..usd.muscle_layer import read_rig_layer, write_tissue_animation_layer
 
-    out = check_output_path(output, suffixes=(".usdc", ".usd"))
+    inputs = {"--mesh": mesh_path, "--rig": rig_path, "--capture": capture_path, "--binding": binding_path}
+    out = check_output_path(output, suffixes=(".usdc", ".usd"), inputs=inputs)
+    refuse_overwriting_inputs({"--report": report}, inputs)
     if int(step) < 1:
         raise OptionError(f"--step must be >= 1; got {step}")
     t0 = time.perf_counter()
@@ -369,9 +396,12 @@ def fit_muscles(mesh_path, rig_path, capture_path, binding_path, output, *, step
     write_tissue_animation_layer(out, chunks(), mesh_path=mesh_path, rig_path=rig_path,
                                  rest_points=sim.model.mesh.points, start=float(codes[0]), rate=capture.rate,
                                  n_frames=len(sel), units=mesh.units, muscle_names=rig.names, contractions=contr,
-                                 jaw=jaw, prov=prov, time_codes=codes)
+                                 jaw=jaw, prov=prov, time_codes=codes, mesh=mesh)
+    # the shot adds the binding layer: the captured markers beside the simulated face
+    shot = _write_tissue_shot(out, [out, binding_path], rate=capture.rate, start=float(codes[0]),
+                              end=float(codes[-1]), units=mesh.units, stabilized_capture=capture.head_motion is not None)
     final = res.errors[f"pass{refine + 1}"]
-    summary = {"output": str(out), "frames": int(len(sel)), "rate": rate, "errors": res.errors,
+    summary = {"output": str(out), "shot": shot, "frames": int(len(sel)), "rate": rate, "errors": res.errors,
                "perMarkerRms": res.per_marker, "meanContraction": dict(zip(names, res.controls.mean(axis=0).tolist())),
                "maxContraction": dict(zip(names, res.controls.max(axis=0).tolist())),
                "seconds": time.perf_counter() - t0, "capture": str(capture_path)}
@@ -383,7 +413,7 @@ def fit_muscles(mesh_path, rig_path, capture_path, binding_path, output, *, step
     worst = sorted(res.per_marker.items(), key=lambda kv: -kv[1] if math.isfinite(kv[1]) else 0)[:4]
     summary["_text"] = [
         f"wrote {out}: {len(sel)} frames fitted ({names.__len__()} controls, {refine} refinement pass(es), "
-        f"{summary['seconds']:.1f} s)",
+        f"{summary['seconds']:.1f} s); shot stage {shot}",
         f"  marker error RMS {final['rms']:.3f} {u} (median {final['median']:.3f}, p95 {final['p95']:.3f}); "
         f"a still face: RMS {res.errors['still']['rms']:.3f} {u}; linear fit: {res.errors['linear']['rms']:.3f} {u}",
         "  worst markers: " + ", ".join(f"{k} {v:.2f}" for k, v in worst),
@@ -422,7 +452,7 @@ def preset_contact_sheet(mesh_paths, output, *, presets=None, size=(360, 420), i
 
 def register_cli(sub) -> None:
     """Add the ``muscles``, ``simulate`` and ``fit-muscles`` subcommands."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
     from ..tissue.expressions import PRESET_NAMES
     from ..tissue.integrators import INTEGRATORS
 
@@ -463,7 +493,8 @@ def register_cli(sub) -> None:
     p.add_argument("--hold", type=int, default=12, help="frames the expression is held after the ramp (default 12)")
     p.add_argument("--intensity", type=float, default=1.0, help="scale of the preset's contractions, 0..1")
     p.add_argument("--tissue", action="append", metavar="KEY=VALUE", help="override a tissue option")
-    p.add_argument("-o", "--output", required=True, help="animation layer to write (.usdc)")
+    p.add_argument("-o", "--output", required=True,
+                   help="animation layer to write (.usdc; stands alone); X_shot.usda is written beside it")
     add_common_options(p)
     p.set_defaults(func=lambda a: simulate(a.mesh, a.rig, a.output, expression=a.expression, timeline=a.timeline,
                                            integrator=a.integrator, dt=a.dt, rate=a.rate, ramp=a.ramp, hold=a.hold,
@@ -484,7 +515,9 @@ def register_cli(sub) -> None:
     p.add_argument("--stabilize", choices=["auto", "none"], default="auto",
                    help="remove head motion first when the capture layer is not stabilised (default auto)")
     p.add_argument("--report", help="JSON file with the fitted contractions and error statistics")
-    p.add_argument("-o", "--output", required=True, help="animation layer to write (.usdc)")
+    p.add_argument("-o", "--output", required=True,
+                   help="animation layer to write (.usdc; stands alone); X_shot.usda (with the markers) is written "
+                        "beside it")
     add_common_options(p)
     p.set_defaults(func=lambda a: fit_muscles(a.mesh, a.rig, a.capture, a.binding, a.output, step=a.step,
                                               refine=a.refine, regularization=a.regularization,

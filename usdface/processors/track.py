@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import refuse_overwriting_inputs
 from ..errors import InputError, OptionError, UsdFaceError
 
 log = logging.getLogger("usdface")
@@ -163,7 +164,10 @@ def track(video, output, *, seeds=None, auto: int | None = None, layout=None, me
     t0 = time.perf_counter()
     if (seeds is None) == (auto is None):
         raise OptionError("track: give exactly one of --seeds SEEDS.json or --auto N")
-    out = check_output_path(output)
+    inputs = {"video": video, "--seeds": seeds if not isinstance(seeds, dict) else None, "--layout": layout,
+              "--mesh": mesh}
+    out = check_output_path(output, inputs=inputs)
+    refuse_overwriting_inputs({"--csv": csv, "--preview": preview}, inputs)
     csv_path = _check_csv_output(csv) if csv else None
     png_path = check_image_output(preview, suffixes=(".png",), option="--preview") if preview else None
     r = check_radius_range(radius)
@@ -199,8 +203,11 @@ def track(video, output, *, seeds=None, auto: int | None = None, layout=None, me
     result = track_frames(progress(frames(), total=reader.n_frames, desc="track", unit="frame"), detector, names, xy,
                           initial_area=area, rate=reader.rate, size=reader.size, gate=gate)
     elapsed = time.perf_counter() - t0
-    capture = result.to_capture(source=str(video), units="px", start_frame=reader.first_frame)
+    # time code = frame index from 0 (the first frame read), whatever the sequence's numbering;
+    # the first file's number is kept in the options (firstFrame) to map back to the footage
+    capture = result.to_capture(source=str(video), units="px", start_frame=0)
     options = {"seeds": None if seeds is None or isinstance(seeds, dict) else Path(seeds).name, "auto": auto,
+               "firstFrame": int(reader.first_frame),
                "radius": list(r), "rate": reader.rate, "threshold": threshold, "minStd": min_std, "gate": result.stats["gate"],
                "layout": Path(layout).name if layout else None}
     inputs = {"video": video if reader.kind == "movie" else None}
@@ -264,7 +271,7 @@ def track(video, output, *, seeds=None, auto: int | None = None, layout=None, me
 
 def register_cli(subparsers) -> None:
     """Add ``usdface track`` to the CLI's subparsers."""
-    from ..cli import add_common_options
+    from ..cliargs import add_common_options
 
     p = subparsers.add_parser(
         "track", help="track coloured face markers in a video -> 2D track layer (+ CSV, preview)",

@@ -168,12 +168,18 @@ def build_transfer_solver(mesh, binding, dm, *, rbf="interpolate", kernel="gauss
 def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rbf="interpolate",
              kernel="gaussian", stiffness=None, regularization="auto", polynomial=False, method=None,
              all_invalid="error", chunk_frames=DEFAULT_CHUNK_FRAMES,
-             max_amplification=DEFAULT_MAX_AMPLIFICATION) -> dict:
-    """Transfer the capture's marker displacements to every vertex; write the animation layer."""
-    from ..capture.retarget import marker_displacements
+             max_amplification=DEFAULT_MAX_AMPLIFICATION, head_motion=True) -> dict:
+    """Transfer the capture's marker displacements to every vertex; write the animation layer.
+
+    ``head_motion``: when the capture was stabilised, deliver the head motion it removed as the
+    time-sampled transform of the face's root prim (:mod:`usdface.usd.motion`); False leaves the
+    face head-stabilised.
+    """
+    from ..capture.retarget import marker_displacements, mesh_head_motion
     from ..usd.analysis_layer import write_animation_layer
 
-    out = check_output_path(output)
+    out = check_output_path(output, inputs={"--mesh": mesh_path, "--capture": capture_path,
+                                            "--binding": binding_path, "--analysis": analysis_path})
     mesh, capture, binding, dm = load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path,
                                                       method=method)
     disp = marker_displacements(capture, binding.names, binding.displacement_transform())
@@ -183,8 +189,10 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
                                          all_invalid=all_invalid, max_amplification=max_amplification)
     regularization, choice = info["regularization"], info["choice"]
     amp, miss, advice, settings = info["amplification"], info["markerResidual"], info["advice"], info["settings"]
+    motion = mesh_head_motion(capture, binding.capture_to_mesh) if head_motion else None
     options = {"rbf": rbf, "kernel": kernel, "stiffness": stiffness, "regularization": regularization,
-               "polynomial": polynomial, "method": dm.method, "all_invalid": all_invalid}
+               "polynomial": polynomial, "method": dm.method, "all_invalid": all_invalid,
+               "head_motion": motion is not None}
     prov = provenance("transfer", options=options, inputs={"mesh": mesh_path, "capture": capture_path,
                                                            "binding": binding_path, "analysis": analysis_path})
     bar = progress(total=capture.n_frames, desc="transfer", unit="frame")
@@ -192,14 +200,13 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
         # the rest points and the extents come out of the RBF's matrix product (the producer thread):
         # the writer thread only writes. One BLAS thread: the producer runs beside the writer, and
         # OpenBLAS's spinning second thread took the writer's core (2.4x the CPU, 2x the wall time
-        # of the product on 2 cores)
-        # big meshes: fewer frames per chunk, so the buffers stay within CHUNK_BYTES each
+        # of the product on 2 cores). Big meshes: fewer frames per chunk (CHUNK_BYTES per buffer)
         frames_per_chunk = max(1, min(int(chunk_frames), CHUNK_BYTES // (12 * mesh.n_points)))
         chunks = solver.iter_chunks(disp, chunk_frames=frames_per_chunk, offset=mesh.points, extents=True,
                                     blas_threads=1, buffers=PREFETCH_BUFFERS)
         write_animation_layer(out, chunks, mesh_path=mesh_path, rest_points=None, start=capture.start_frame,
-                              rate=capture.rate,
-                              n_frames=capture.n_frames, units=mesh.units, transfer=settings, prov=prov, progress=bar)
+                              rate=capture.rate, n_frames=capture.n_frames, units=mesh.units, transfer=settings,
+                              prov=prov, progress=bar, head_motion=motion)
     finally:
         bar.close()
     seconds = time.perf_counter() - t0
@@ -213,6 +220,7 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
         "regularization": regularization, "amplification": amp, "markerResidual": miss,
         "exactAmplification": None if choice is None else choice.exact_amplification,
         "framesWithInvalidMarkers": invalid_frames, "validityPatterns": cache, "seconds": round(seconds, 3),
+        "headMotion": motion is not None,
     }
     cond = f", condition number {solver.condition_number:.3g}" if solver.condition_number else ""
     cond += f", amplification {amp:.1f}x" + (f", regularization {regularization:.3g} chosen automatically: "

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -182,18 +181,11 @@ class ActiveAppearanceModel:
         if p.suffix != ".npz":
             raise OptionError(f"AAM model {p}: expected a file ending in .npz")
         meta = dict(self.meta, format=AAM_FORMAT, names=list(self.names))
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".npz", dir=p.parent if str(p.parent) else ".")
-        os.close(fd)
-        try:
-            np.savez_compressed(tmp, meta=np.asarray(json.dumps(meta)),
+        from ..fileutil import atomic_write
+
+        with atomic_write(p, "wb") as f:
+            np.savez_compressed(f, meta=np.asarray(json.dumps(meta)),
                                 **{k: np.asarray(v) for k, v in self._arrays().items()})
-            mask = os.umask(0)
-            os.umask(mask)
-            os.chmod(tmp, 0o666 & ~mask)
-            os.replace(tmp, p)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
         return p
 
     @property

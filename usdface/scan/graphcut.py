@@ -96,6 +96,19 @@ def _box(a: np.ndarray, window: int) -> np.ndarray:
     return uniform_filter(a, size=(window, window, 1), mode="nearest")
 
 
+
+_BYTE_BITS = np.array([bin(i).count("1") for i in range(256)], dtype=np.uint8)
+
+
+def popcount(a: np.ndarray) -> np.ndarray:
+    """Set bits of each element of an unsigned integer array (``np.bitwise_count`` of numpy 2,
+    which numpy 1.26 — still supported, and what Blender's bpy pins — lacks)."""
+    if hasattr(np, "bitwise_count"):
+        return np.bitwise_count(a)
+    a = np.ascontiguousarray(a)
+    as_bytes = a.view(np.uint8).reshape(a.shape + (a.dtype.itemsize,))
+    return _BYTE_BITS[as_bytes].sum(axis=-1, dtype=np.uint8)
+
 def matching_cost(left, right, *, min_disparity: int = 0, num_disparities: int = 64, census_radius: int = 3,
                   gradient_weight: float = 0.3, gradient_truncation: float = 20.0, window: int = 5) -> np.ndarray:
     """Matching-cost volume of a rectified pair (the data term ``D_p(d)``).
@@ -137,7 +150,7 @@ def matching_cost(left, right, *, min_disparity: int = 0, num_disparities: int =
         d = min_disparity + k
         # column x of the left image matches column x - d of the right one
         src = np.clip(np.arange(w) - d, 0, w - 1)
-        ham = np.bitwise_count(cl ^ cr[:, src]).astype(np.float32) / n_bits
+        ham = popcount(cl ^ cr[:, src]).astype(np.float32) / n_bits
         grad = np.minimum(np.abs(gxl - gxr[:, src]), gradient_truncation) / gradient_truncation
         c = ham + gradient_weight * grad
         first = max(d, 0)  # columns with no counterpart in the right image

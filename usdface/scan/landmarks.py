@@ -25,12 +25,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..fileutil import write_text_atomic
 from ..errors import FormatError, InputError, MeshError, list_names
 
 __all__ = ["FACE_LANDMARKS", "EYE_LANDMARKS", "Landmarks", "read_landmarks", "write_landmarks",
@@ -160,19 +160,7 @@ def _landmarks_dict(lm: Landmarks, decimals: int) -> dict:
 
 def _atomic_text(path: Path, text: str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_text_atomic(path, text)
 
 
 def write_landmarks(path, landmarks: Landmarks, *, decimals: int = 3) -> Path:

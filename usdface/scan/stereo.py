@@ -2,17 +2,26 @@
 
 Methods (:data:`METHODS`):
 
-- ``"sgbm"`` (default, fast): OpenCV's semi-global block matching on both views, then the
-  weighted-least-squares disparity filter of cv2.ximgproc (edge-aware smoothing guided by the
-  left image, with its left-right confidence), giving a dense map;
-- ``"graphcut"`` (quality): the KZ1-style energy minimised by alpha-expansion
-  (:mod:`usdface.scan.graphcut`);
-- ``"sgbm-plain"``: cv2.StereoSGBM alone, the baseline of the benchmarks.
+- ``"sgbm"`` (default, fast): OpenCV's semi-global block matching (3-way, P1/P2 set from the block
+  size) with its own checks: uniqueness, left-right consistency within 1 px, speckle filter;
+- ``"sgbm-wls"``: the same on both views, then the weighted-least-squares disparity filter of
+  cv2.ximgproc (edge-aware smoothing guided by the left image) and a left-right check; it was
+  the default until measured: it smooths depth across edges (rendered faces: median depth error
+  0.97 mm against 0.66 mm for ``sgbm``, 95th percentile 4.7 against 2.4 mm);
+- ``"graphcut"`` (quality, slow): the KZ1-style energy minimised by alpha-expansion
+  (:mod:`usdface.scan.graphcut`).
 
-Every method returns a dense or sparse disparity with a ``valid`` mask that excludes occluded and
-inconsistent pixels (left-right consistency for SGBM, uniqueness for the graph cut), which the
-scan uses. The vertical arrangement (second camera below the first) is handled by transposing
-both images, matching, and transposing back.
+Every method returns a disparity with a ``valid`` mask that excludes occluded and inconsistent
+pixels, which the scan uses. A disparity *map* for people and benchmarks is dense:
+:func:`fill_background` gives each rejected pixel the background (smaller) disparity of its
+nearest accepted neighbours along the baseline, the usual treatment of occlusions, which lie
+behind a foreground edge. On the Middlebury motorcycle pair (bad = |d - gt| > 2 px over the
+pixels with ground truth, missing counted bad): ``sgbm`` 9.1%, ``sgbm-wls`` 11.0%, ``graphcut``
+8.4%, against 20.5% for plain cv2.StereoSGBM (64 disparities, block 5, its other defaults);
+see the README for the commands that print these.
+
+The vertical arrangement (second camera below the first) is handled by transposing both images,
+matching, and transposing back.
 """
 from __future__ import annotations
 
@@ -25,9 +34,9 @@ import numpy as np
 from ..errors import InputError, OptionError
 
 __all__ = ["METHODS", "DisparityResult", "compute_disparity", "bad_pixel_rate", "disparity_range",
-           "check_rectified", "check_pair"]
+           "check_rectified", "check_pair", "fill_background"]
 
-METHODS = ("sgbm", "graphcut", "sgbm-plain")
+METHODS = ("sgbm", "sgbm-wls", "graphcut")
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,7 +166,7 @@ def _match_horizontal(left, right, *, method, min_disparity, num_disparities, bl
 
     info: dict = {}
     t0 = time.perf_counter()
-    if method in ("sgbm", "sgbm-plain"):
+    if method in ("sgbm", "sgbm-wls"):
         channels = 1 if left.ndim == 2 else left.shape[2]
         modes = {"sgbm": cv2.STEREO_SGBM_MODE_SGBM, "3way": cv2.STEREO_SGBM_MODE_SGBM_3WAY,
                  "hh": cv2.STEREO_SGBM_MODE_HH, "hh4": cv2.STEREO_SGBM_MODE_HH4}
@@ -166,7 +175,7 @@ def _match_horizontal(left, right, *, method, min_disparity, num_disparities, bl
         left_m = _sgbm(min_disparity, num_disparities, block_size, channels, modes[sgbm_mode])
         raw_l = left_m.compute(left, right)
         invalid_code = (min_disparity - 1) * 16
-        if method == "sgbm-plain":
+        if method == "sgbm":
             d = raw_l.astype(np.float32) / 16.0
             d[raw_l <= invalid_code] = np.nan
             info["seconds"] = time.perf_counter() - t0
@@ -215,7 +224,7 @@ def compute_disparity(first, second, *, method: str = "sgbm", min_disparity: int
     first, second : ndarray, shape (H, W) or (H, W, 3), uint8
         Rectified images: left and right, or top and bottom when ``vertical``.
     method : str
-        ``"sgbm"`` (SGBM + WLS, default), ``"graphcut"`` or ``"sgbm-plain"``.
+        ``"sgbm"`` (default), ``"sgbm-wls"`` (SGBM + WLS filter) or ``"graphcut"``.
     min_disparity, num_disparities : int
         Searched range ``min_disparity .. min_disparity + num_disparities - 1`` (pixels). SGBM
         rounds ``num_disparities`` up to a multiple of 16.
@@ -283,6 +292,44 @@ def compute_disparity(first, second, *, method: str = "sgbm", min_disparity: int
     info.update(vertical=vertical, sgbm_mode=sgbm_mode if method != "graphcut" else None)
     return DisparityResult(disparity=d.astype(np.float32), valid=valid, method=method,
                            min_disparity=int(min_disparity), num_disparities=int(num_disparities), info=info)
+
+
+def fill_background(disparity, valid, *, vertical: bool = False) -> np.ndarray:
+    """Dense disparity map: pixels outside ``valid`` take the background disparity of their row.
+
+    Each rejected pixel (occluded, inconsistent, unmatched) gets the smaller of the disparities of
+    the nearest accepted pixels before and after it along the baseline (a row; a column for a
+    vertical pair), or the one that exists at an image edge. Occluded pixels are seen by one
+    camera only because a nearer surface hides them from the other: they belong to the farther,
+    background surface, whose disparity is the smaller one.
+
+    Parameters
+    ----------
+    disparity : ndarray, shape (H, W), float
+        Disparities (pixels); NaN anywhere is treated as rejected.
+    valid : ndarray, shape (H, W), bool
+        Accepted pixels.
+    vertical : bool
+        The baseline runs along columns.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32
+        Accepted pixels unchanged, the others filled; NaN only on lines with no accepted pixel.
+    """
+    d = np.where(np.asarray(valid, bool), np.asarray(disparity, dtype=np.float64), np.nan)
+    if vertical:
+        d = d.T
+    h, w = d.shape
+    have = np.isfinite(d)
+    cols = np.arange(w)[None, :]
+    before = np.maximum.accumulate(np.where(have, cols, -1), axis=1)
+    after = np.minimum.accumulate(np.where(have, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    rows = np.arange(h)[:, None]
+    left = np.where(before >= 0, d[rows, np.clip(before, 0, w - 1)], np.nan)
+    right = np.where(after < w, d[rows, np.clip(after, 0, w - 1)], np.nan)
+    filled = np.where(have, d, np.fmin(left, right))
+    return np.ascontiguousarray(filled.T if vertical else filled).astype(np.float32)
 
 
 def bad_pixel_rate(disparity, ground_truth, *, threshold: float = 2.0, valid=None) -> dict:

@@ -1,17 +1,20 @@
 """Joints of the marker skeleton: names, rest/bind transforms and per-frame animation.
 
-The skeleton is one head joint (the root) and one translation-only joint per marker, children of
-the head joint::
+The skeleton is one static root joint and one translation-only joint per marker, children of
+the root::
 
-    Head                     root; its animation is the head motion (identity when none)
-    Head/<marker joint>      at the marker's bound surface point; animated by the marker's
-                             (head-local) mesh-space displacement
+    Head                     root: the head's rigid part; never moves in mesh space (the head
+                             motion is the /Face prim's transform, see the skeleton layer)
+    Head/<marker joint>      at the marker's bound surface point; animated by a translation
 
-Matrices here are column-vector 4x4 numpy arrays (``p' = M @ [p, 1]``); the USD layer code
-converts them. With linear blend skinning the skinning transform of joint j is
-``M_j = world_j(t) @ inverse(bind_j)``: for a marker joint ``H(t) @ T(t_j(t))`` and for the head
-``H(t)``, so a vertex with weights summing to one skins to ``H(t) (p + sum_j w_j t_j(t))``: the
-stabilised transfer moved by the head.
+Joints and their bind/rest transforms are in mesh space (the Skeleton prim has no transform and
+the mesh's geomBindTransform is the identity). Matrices here are column-vector 4x4 numpy arrays
+(``p' = M @ [p, 1]``); the USD layer code converts them. With linear blend skinning the skinning
+transform of joint j is ``M_j = world_j(t) @ inverse(bind_j)``: the identity for the root and a
+translation by ``tau_j(t)`` for marker joint j, so a vertex with weights summing to one skins to
+``p + sum_j w_j tau_j(t)``. Which translations the marker joints get depends on the weights: the
+marker displacements themselves for the exact signed weights, a fitted blend of them for the
+DCC-safe weights (:mod:`usdface.skel.dcc`).
 """
 from __future__ import annotations
 
@@ -96,13 +99,11 @@ class SkeletonRig:
     name_mapping : dict joint -> marker
         Joints renamed from their marker name.
     head_pivot : ndarray (3,)
-        Rest position of the head joint.
+        Rest position of the root joint.
     bound_points : ndarray (M, 3)
         Rest (bind) position of each marker joint: its bound surface point.
-    marker_translations : ndarray (F, M, 3)
-        Marker joint displacement per frame (head-local, mesh units); no NaN.
-    head_motion : ndarray (F, 4, 4) or None
-        Head joint motion per frame in mesh space (None: identity).
+    joint_translations : ndarray (F, M, 3)
+        Marker joint translation per frame (mesh units); no NaN.
     """
 
     marker_names: tuple
@@ -111,8 +112,7 @@ class SkeletonRig:
     name_mapping: dict
     head_pivot: np.ndarray
     bound_points: np.ndarray
-    marker_translations: np.ndarray
-    head_motion: np.ndarray | None = None
+    joint_translations: np.ndarray
 
     @property
     def n_joints(self) -> int:
@@ -120,72 +120,37 @@ class SkeletonRig:
 
     @property
     def n_frames(self) -> int:
-        return self.marker_translations.shape[0]
+        return self.joint_translations.shape[0]
 
     def bind_transforms(self) -> np.ndarray:
-        """(J, 4, 4) world-space bind transforms: the head at its pivot, markers at bound points."""
+        """(J, 4, 4) mesh-space bind transforms: the root at its pivot, markers at bound points."""
         out = np.tile(np.eye(4), (self.n_joints, 1, 1))
         out[0, :3, 3] = self.head_pivot
         out[1:, :3, 3] = self.bound_points
         return out
 
     def rest_transforms(self) -> np.ndarray:
-        """(J, 4, 4) joint-local rest transforms (markers relative to the head)."""
+        """(J, 4, 4) joint-local rest transforms (markers relative to the root)."""
         out = self.bind_transforms()
         out[1:, :3, 3] -= self.head_pivot
         return out
 
-    def local_animation(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per-frame joint-local translations (F, J, 3) and rotations as quaternions (F, J, 4)
-        in (w, x, y, z) order, for the SkelAnimation (scales are all one)."""
-        F, J = self.n_frames, self.n_joints
-        trans = np.empty((F, J, 3))
-        rot = np.zeros((F, J, 4))
-        rot[:, :, 0] = 1.0
-        trans[:, 1:] = self.bound_points[None] - self.head_pivot + self.marker_translations
-        if self.head_motion is None:
-            trans[:, 0] = self.head_pivot
-        else:
-            # head world = H(t) @ T(pivot): rotation of H, translation H applied to the pivot
-            hm = self.head_motion
-            trans[:, 0] = np.einsum("fij,j->fi", hm[:, :3, :3], self.head_pivot) + hm[:, :3, 3]
-            rot[:, 0] = rotation_to_quaternion(hm[:, :3, :3])
-        return trans, rot
+    def local_animation(self) -> np.ndarray:
+        """(F, J, 3) joint-local translations per frame for the SkelAnimation (rotations are all
+        the identity and scales all one): the root stays at its pivot."""
+        trans = np.empty((self.n_frames, self.n_joints, 3))
+        trans[:, 0] = self.head_pivot
+        trans[:, 1:] = self.bound_points[None] - self.head_pivot + self.joint_translations
+        return trans
 
     def skinning_transforms(self) -> np.ndarray:
         """(F, J, 4, 4) skinning transforms ``world_j(t) @ inverse(bind_j)`` (numpy reference)."""
-        F, J = self.n_frames, self.n_joints
-        h = np.tile(np.eye(4), (F, 1, 1)) if self.head_motion is None else self.head_motion
-        out = np.repeat(h[:, None], J, axis=1).copy()
-        out[:, 1:, :3, 3] += np.einsum("fij,fmj->fmi", h[:, :3, :3], self.marker_translations)
+        out = np.tile(np.eye(4), (self.n_frames, self.n_joints, 1, 1))
+        out[:, 1:, :3, 3] = self.joint_translations
         return out
 
 
-def rotation_to_quaternion(r: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotation matrices -> (..., 4) unit quaternions (w, x, y, z), w >= 0."""
-    r = np.asarray(r, dtype=np.float64)
-    m = r.reshape(-1, 3, 3)
-    q = np.empty((m.shape[0], 4))
-    tr = np.trace(m, axis1=1, axis2=2)
-    for i, a in enumerate(m):
-        if tr[i] > 0:
-            s = 2.0 * np.sqrt(tr[i] + 1.0)
-            q[i] = (0.25 * s, (a[2, 1] - a[1, 2]) / s, (a[0, 2] - a[2, 0]) / s, (a[1, 0] - a[0, 1]) / s)
-        elif a[0, 0] > a[1, 1] and a[0, 0] > a[2, 2]:
-            s = 2.0 * np.sqrt(1.0 + a[0, 0] - a[1, 1] - a[2, 2])
-            q[i] = ((a[2, 1] - a[1, 2]) / s, 0.25 * s, (a[0, 1] + a[1, 0]) / s, (a[0, 2] + a[2, 0]) / s)
-        elif a[1, 1] > a[2, 2]:
-            s = 2.0 * np.sqrt(1.0 + a[1, 1] - a[0, 0] - a[2, 2])
-            q[i] = ((a[0, 2] - a[2, 0]) / s, (a[0, 1] + a[1, 0]) / s, 0.25 * s, (a[1, 2] + a[2, 1]) / s)
-        else:
-            s = 2.0 * np.sqrt(1.0 + a[2, 2] - a[0, 0] - a[1, 1])
-            q[i] = ((a[1, 0] - a[0, 1]) / s, (a[0, 2] + a[2, 0]) / s, (a[1, 2] + a[2, 1]) / s, 0.25 * s)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    q[q[:, 0] < 0] *= -1
-    return q.reshape(r.shape[:-2] + (4,))
-
-
-def build_rig(marker_names, bound_points, marker_translations, *, head_motion=None, head_pivot=None) -> SkeletonRig:
+def build_rig(marker_names, bound_points, joint_translations, *, head_pivot=None) -> SkeletonRig:
     """Assemble the :class:`SkeletonRig`.
 
     Parameters
@@ -193,17 +158,15 @@ def build_rig(marker_names, bound_points, marker_translations, *, head_motion=No
     marker_names : sequence of str, length M
     bound_points : array (M, 3)
         Bound surface points (mesh space, mesh units).
-    marker_translations : array (F, M, 3)
-        Per-frame marker displacements (head-local mesh space, mesh units); must be finite (the
+    joint_translations : array (F, M, 3)
+        Per-frame marker joint translations (mesh space, mesh units); must be finite (the
         caller resolves missing samples).
-    head_motion : array (F, 4, 4), optional
-        Head motion in mesh space (:func:`head_motion_in_mesh_space`).
     head_pivot : array (3,), optional
-        Rest position of the head joint (default: centroid of the bound points).
+        Rest position of the root joint (default: centroid of the bound points).
     """
     names = tuple(str(n) for n in marker_names)
     pts = np.asarray(bound_points, dtype=np.float64)
-    tr = np.asarray(marker_translations, dtype=np.float64)
+    tr = np.asarray(joint_translations, dtype=np.float64)
     if pts.shape != (len(names), 3) or tr.ndim != 3 or tr.shape[1:] != (len(names), 3):
         raise MarkerError(f"skeleton: {len(names)} markers but bound points {pts.shape} and translations {tr.shape}")
     bad = ~np.isfinite(tr).all(axis=(0, 2))
@@ -211,11 +174,6 @@ def build_rig(marker_names, bound_points, marker_translations, *, head_motion=No
         raise MarkerError(f"skeleton: marker joint translations are not finite for {list_names(np.array(names)[bad])}")
     joints, mapping = joint_names(names)
     pivot = pts.mean(axis=0) if head_pivot is None else np.asarray(head_pivot, dtype=np.float64)
-    if head_motion is not None:
-        head_motion = np.asarray(head_motion, dtype=np.float64)
-        if head_motion.shape != (tr.shape[0], 4, 4):
-            raise MarkerError(f"skeleton: head motion {head_motion.shape} for {tr.shape[0]} frames")
     return SkeletonRig(marker_names=names, joint_names=tuple(joints),
                        joint_paths=(HEAD_JOINT,) + tuple(f"{HEAD_JOINT}/{j}" for j in joints),
-                       name_mapping=mapping, head_pivot=pivot, bound_points=pts, marker_translations=tr,
-                       head_motion=head_motion)
+                       name_mapping=mapping, head_pivot=pivot, bound_points=pts, joint_translations=tr)

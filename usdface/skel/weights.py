@@ -1,18 +1,17 @@
-"""Linear-blend-skinning weights from the RBF transfer matrix.
+"""Exact (signed) linear-blend-skinning weights from the RBF transfer matrix.
 
 Why the transfer matrix is a set of skin weights
 ------------------------------------------------
 The transfer moves vertex i by ``Dv_i = sum_j B_ij t_j`` (B the N x M transfer matrix, t_j marker
 j's displacement). Give marker j a translation-only joint animated by t_j and the head joint the
 remaining weight ``1 - sum_j B_ij``: with linear blend skinning every marker joint's skinning
-transform is ``p -> p + t_j`` and the head joint's is the identity (no head motion), so
+transform is ``p -> p + t_j`` and the head joint's is the identity, so
 
     skinned p_i = sum_j B_ij (p_i + t_j) + (1 - sum_j B_ij) p_i = p_i + (B t)_i,
 
-exactly the point cache. With head motion H(t) on the head joint and the marker joints its
-children, every skinning transform is composed with H(t) and the skinned point is ``H(t)`` applied
-to the stabilised point cache. Weights must sum to one for this to hold (they do, by construction
-of the head remainder), and every weight of every marker matters: the N x (M + 1) matrix
+exactly the (stabilised) point cache; the head motion is a transform of the whole face (the
+skeleton layer's /Face prim), not a joint's. Weights must sum to one for this to hold (they do, by
+construction of the remainder), and every weight of every marker matters: the N x (M + 1) matrix
 (:func:`full_weights`) is exact.
 
 Pruning to K influences
@@ -29,15 +28,14 @@ forced in) and then either
   to the transfer's.
 - ``fit="renormalize"``: truncates and rescales the K weights to sum to one.
 
-Negative weights
-----------------
+Signs
+-----
 The interpolating transfer has negative entries (the Gaussian interpolant overshoots between
-markers: a marker pulls some vertices slightly the other way), and the head remainder is negative
-where the marker weights sum to more than one. UsdSkel applies weights as authored (negative
-ones included) and the exact reproduction needs them, so the default policy is ``"keep"``. Some
-DCC importers clamp negative weights to zero (and renormalise); ``"clamp"`` does that here, so
-the layer shows what such an importer would show, and the skinning error reported for it says
-what the clamping costs.
+markers), and the head remainder is negative where the marker weights sum to more than one.
+UsdSkel applies weights as authored and the exact reproduction needs them, but DCC importers do
+not (Blender drops weights below 1e-5 and renormalises; Maya and game engines expect
+non-negative weights): these "exact" weights are for UsdSkel consumers, the default deliverable
+is the DCC-safe fit of :mod:`usdface.skel.dcc`.
 """
 from __future__ import annotations
 
@@ -47,7 +45,6 @@ import numpy as np
 
 from ..errors import OptionError
 
-NEGATIVE_POLICIES = ("keep", "clamp")
 FIT_METHODS = ("lsq", "renormalize")
 #: ridge of the least-squares refit, relative to the mean diagonal of the motion's Gram matrix
 LSQ_RIDGE = 1e-6
@@ -55,7 +52,7 @@ LSQ_RIDGE = 1e-6
 
 @dataclass(frozen=True)
 class SkinWeights:
-    """K influences per vertex (joint 0 = the head joint, joint j + 1 = marker j).
+    """K influences per vertex (joint 0 = the root joint, joint j + 1 = marker j).
 
     Attributes
     ----------
@@ -63,15 +60,16 @@ class SkinWeights:
         Joint indices into the skeleton's joint order.
     weights : ndarray (N, K) float64
         Weights, each row summing to one (up to rounding), strongest first.
-    negative : str
-        Negative-weight policy applied.
+    mode : str
+        "exact" (signed, from the transfer matrix) or "dcc" (non-negative fit).
     fit : str
-        How pruned weights were refitted ("exact" when nothing was pruned).
+        How the weights were obtained: "exact" (nothing pruned), "lsq" or "renormalize" (exact
+        weights pruned to K), "dcc".
     """
 
     indices: np.ndarray
     weights: np.ndarray
-    negative: str = "keep"
+    mode: str = "exact"
     fit: str = "exact"
 
     @property
@@ -99,19 +97,7 @@ def motion_gram(displacements: np.ndarray) -> np.ndarray:
     return flat @ flat.T
 
 
-def _clamp(weights: np.ndarray) -> np.ndarray:
-    w = np.maximum(weights, 0.0)
-    s = w.sum(axis=1, keepdims=True)
-    dead = s[:, 0] <= 0
-    if dead.any():  # every weight negative or zero (cannot happen for a sum of one): give it to the strongest
-        w[dead] = 0.0
-        w[dead, 0] = 1.0
-        s[dead] = 1.0
-    return w / s
-
-
-def prune_weights(full: np.ndarray, k: int | None, *, gram: np.ndarray | None = None, fit: str = "lsq",
-                  negative: str = "keep") -> SkinWeights:
+def prune_weights(full: np.ndarray, k: int | None, *, gram: np.ndarray | None = None, fit: str = "lsq") -> SkinWeights:
     """Keep K influences per vertex and make each row sum to one.
 
     Parameters
@@ -124,15 +110,11 @@ def prune_weights(full: np.ndarray, k: int | None, *, gram: np.ndarray | None = 
         :func:`motion_gram` of the take, for ``fit="lsq"`` (required then, unless nothing is pruned).
     fit : {"lsq", "renormalize"}
         How the kept weights are refitted (module docstring).
-    negative : {"keep", "clamp"}
-        Negative-weight policy (module docstring).
 
     Returns
     -------
     SkinWeights
     """
-    if negative not in NEGATIVE_POLICIES:
-        raise OptionError(f"negative weights: expected one of {', '.join(NEGATIVE_POLICIES)}; got {negative!r}")
     if fit not in FIT_METHODS:
         raise OptionError(f"weight fit: expected one of {', '.join(FIT_METHODS)}; got {fit!r}")
     full = np.asarray(full, dtype=np.float64)
@@ -141,10 +123,7 @@ def prune_weights(full: np.ndarray, k: int | None, *, gram: np.ndarray | None = 
         raise OptionError(f"--max-influences: expected an integer >= 1; got {k!r}")
     if k is None or k >= j:
         order = np.argsort(-np.abs(full), axis=1, kind="stable")
-        w = np.take_along_axis(full, order, axis=1)
-        if negative == "clamp":
-            w = _clamp(w)
-        return SkinWeights(order.astype(np.int32), w, negative, "exact")
+        return SkinWeights(order.astype(np.int32), np.take_along_axis(full, order, axis=1), "exact", "exact")
     order = np.argsort(-np.abs(full), axis=1, kind="stable")[:, :k]
     w = np.take_along_axis(full, order, axis=1)
     used_fit = fit
@@ -157,9 +136,7 @@ def prune_weights(full: np.ndarray, k: int | None, *, gram: np.ndarray | None = 
         if gram is None:
             raise OptionError("prune_weights(fit='lsq') needs the motion Gram matrix (gram=motion_gram(displacements))")
         w = _lsq_refit(full, order, np.asarray(gram, dtype=np.float64))
-    if negative == "clamp":
-        w = _clamp(w)
-    return SkinWeights(order.astype(np.int32), w, negative, used_fit)
+    return SkinWeights(order.astype(np.int32), w, "exact", used_fit)
 
 
 def _lsq_refit(full: np.ndarray, order: np.ndarray, gram: np.ndarray) -> np.ndarray:
@@ -201,10 +178,11 @@ def _lsq_refit(full: np.ndarray, order: np.ndarray, gram: np.ndarray) -> np.ndar
 
 def skinning_error(weights: SkinWeights, transfer_matrix: np.ndarray, displacements: np.ndarray,
                    rest_points: np.ndarray, *, chunk_frames: int = 256) -> dict:
-    """How far linear blend skinning with ``weights`` is from the point cache (head-local frame).
+    """How far linear blend skinning with exact-mode ``weights`` is from the point cache.
 
+    The marker joints translate by the marker displacements t(f) and the root stays still.
     Skinned displacement of vertex i at frame f: ``(s_i - 1) p_i + sum_k w_ik t_{j_ik}(f)`` (s_i the
-    row sum, head translation zero); the point cache moves it by ``(B t(f))_i``.
+    row sum); the point cache moves it by ``(B t(f))_i``.
 
     Parameters
     ----------
@@ -223,15 +201,34 @@ def skinning_error(weights: SkinWeights, transfer_matrix: np.ndarray, displaceme
     rest_err = (dense.sum(axis=1) - 1.0)[:, None] * np.asarray(rest_points, dtype=np.float64)
     d = np.asarray(displacements, dtype=np.float64)
     flat = np.ascontiguousarray(d.transpose(1, 0, 2).reshape(m, -1))  # (M, F*3), frame-major columns
-    worst, worst_f, sq, count = 0.0, 0, 0.0, 0
-    for a in range(0, d.shape[0], chunk_frames):
-        f = min(d.shape[0], a + chunk_frames) - a
-        err = (e @ flat[:, 3 * a:3 * (a + f)]).reshape(n, f, 3) + rest_err[:, None, :]
-        norm = np.sqrt((err * err).sum(axis=2))  # (N, f)
-        fmax = norm.max(axis=0)
+    def chunks():
+        for a in range(0, d.shape[0], chunk_frames):
+            f = min(d.shape[0], a + chunk_frames) - a
+            err = (e @ flat[:, 3 * a:3 * (a + f)]).reshape(n, f, 3) + rest_err[:, None, :]
+            yield a, np.sqrt((err * err).sum(axis=2)).T  # (f, N)
+
+    return error_summary(chunks())
+
+
+def error_summary(norm_chunks) -> dict:
+    """Largest and rms vertex error over chunks of frames.
+
+    Parameters
+    ----------
+    norm_chunks : iterable of (first frame, ndarray (f, N))
+        Vertex error norms (mesh units) of consecutive chunks of frames.
+
+    Returns
+    -------
+    dict: ``max``, ``rms`` (mesh units), ``maxFrame`` (frame of the largest error), ``frames``.
+    """
+    worst, worst_f, sq, count, frames = 0.0, 0, 0.0, 0, 0
+    for a, norm in norm_chunks:
+        fmax = norm.max(axis=1)
         i = int(fmax.argmax())
         if fmax[i] > worst:
             worst, worst_f = float(fmax[i]), a + i
         sq += float((norm * norm).sum())
         count += norm.size
-    return {"max": worst, "rms": float(np.sqrt(sq / max(count, 1))), "maxFrame": int(worst_f)}
+        frames += norm.shape[0]
+    return {"max": worst, "rms": float(np.sqrt(sq / max(count, 1))), "maxFrame": int(worst_f), "frames": frames}

@@ -130,7 +130,9 @@ class Timeline:
 
     @property
     def first_frame(self) -> float:
-        return self.frames[0] if self.frames else min(float(k[0, 0]) for k in self.keys.values())
+        """Frame 0 (usdface's time codes are frame indices from 0: before its first key a timeline
+        holds the first key's values), an earlier key's frame, or ``frames[0]`` when given."""
+        return self.frames[0] if self.frames else min(0.0, min(float(k[0, 0]) for k in self.keys.values()))
 
     @property
     def last_frame(self) -> float:
@@ -207,7 +209,7 @@ def write_timeline(path, timeline: Timeline) -> Path:
 
 
 def expression_timeline(name: str, muscle_names, *, rate: float = 24.0, ramp_frames: int = 12,
-                        hold_frames: int = 12, intensity: float = 1.0, start_frame: int = 1) -> Timeline:
+                        hold_frames: int = 12, intensity: float = 1.0, start_frame: int = 0) -> Timeline:
     """A preset ramped from 0 to its contractions over ``ramp_frames``, then held ``hold_frames``.
 
     The ramp is linear, as in the paper ("progressively scale these contraction values from zero

@@ -12,7 +12,8 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
 from ..errors import InputError
-from .layers import AtomicLayer, open_stage, relative_asset_path, set_provenance, set_stage_metadata
+from .layers import (add_sublayer, checkpoint, open_stage, output_layer, relative_asset_path, set_provenance,
+                     set_stage_metadata)
 from .mesh_layer import find_mesh
 from .schemas import require_registered
 
@@ -52,7 +53,7 @@ def write_analysis_layer(path, matrices: list[DistanceMatrix], *, mesh_path, uni
     require_registered()
     mesh_stage = open_stage(mesh_path, what="mesh")
     mesh_prim_path = find_mesh(mesh_stage).GetPath()
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         set_stage_metadata(stage, units=units, default_prim=mesh_stage.GetDefaultPrim().GetName())
         prim = stage.OverridePrim(mesh_prim_path)
         for m in matrices:
@@ -67,9 +68,10 @@ def write_analysis_layer(path, matrices: list[DistanceMatrix], *, mesh_path, uni
             prim.GetAttribute(f"{ns}:centreDistances").Set(Vt.FloatArray.FromNumpy(
                 np.ascontiguousarray(m.centre_to_centre, dtype=np.float32).ravel()))
             prim.GetAttribute(f"{ns}:parameters").Set(json.dumps(m.parameters, sort_keys=True, default=float))
-            pv = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(f"usdface:distance:{inst}", Sdf.ValueTypeNames.FloatArray,
-                                                         UsdGeom.Tokens.vertex, m.vertex_to_centre.shape[1])
-            pv.Set(Vt.FloatArray.FromNumpy(np.ascontiguousarray(m.vertex_to_centre, dtype=np.float32).ravel()))
+            # a plain attribute, not a primvar: DCC importers turn vertex primvars into per-point
+            # geometry attributes (an elementSize-C primvar became all-zero junk in Blender)
+            prim.GetAttribute(f"{ns}:vertexDistances").Set(Vt.FloatArray.FromNumpy(
+                np.ascontiguousarray(m.vertex_to_centre, dtype=np.float32).ravel()))
             if m.hybrid_weight is not None:
                 w = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(HYBRID_WEIGHT_PRIMVAR, Sdf.ValueTypeNames.FloatArray,
                                                             UsdGeom.Tokens.vertex)
@@ -91,15 +93,30 @@ def read_distance_matrix(path, *, method: str | None = None, stage: Usd.Stage | 
     ns = f"usdface:distanceMatrix:{inst}"
     names = tuple(prim.GetAttribute(f"{ns}:markerNames").Get() or [])
     cons = np.asarray(prim.GetAttribute(f"{ns}:constraintVertices").Get() or [], dtype=np.int64)
-    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{inst}")
-    c = pv.GetElementSize()
-    vtc = np.asarray(pv.Get(), dtype=np.float32).reshape(-1, c)
+    c = len(names) + cons.size
+    vtc = vertex_distances(prim, inst)
+    if vtc is None:
+        raise InputError(f"analysis {path}: distance matrix {inst!r} on {prim.GetPath()} has no vertex distances")
+    vtc = vtc.reshape(-1, c)
     ctc = np.asarray(prim.GetAttribute(f"{ns}:centreDistances").Get(), dtype=np.float64).reshape(c, c)
     w = UsdGeom.PrimvarsAPI(prim).GetPrimvar(HYBRID_WEIGHT_PRIMVAR)
     return DistanceMatrix(method=prim.GetAttribute(f"{ns}:method").Get(), backend=prim.GetAttribute(f"{ns}:backend").Get(),
                           marker_names=names, constraint_vertices=cons, vertex_to_centre=vtc, centre_to_centre=ctc,
                           parameters=json.loads(prim.GetAttribute(f"{ns}:parameters").Get() or "{}"),
                           hybrid_weight=np.asarray(w.Get(), dtype=np.float32) if w and w.HasValue() else None)
+
+
+def vertex_distances(prim: Usd.Prim, instance: str) -> np.ndarray | None:
+    """The flat N x C vertex-to-centre distances of one FaceDistanceMatrixAPI instance (float32),
+    from ``vertexDistances`` or, in layers of usdface 0.1, the vertex primvar
+    ``primvars:usdface:distance:<instance>``; None when neither holds a value."""
+    attr = prim.GetAttribute(f"usdface:distanceMatrix:{instance}:vertexDistances")
+    if attr and attr.HasAuthoredValue():
+        return np.asarray(attr.Get(), dtype=np.float32)
+    legacy = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{instance}")
+    if legacy and legacy.HasValue():
+        return np.asarray(legacy.Get(), dtype=np.float32)
+    return None
 
 
 def prefetch(iterable):
@@ -136,8 +153,12 @@ def frame_extents(points: np.ndarray) -> np.ndarray:
 
 
 def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | None = None, start: float,
-                          rate: float, n_frames: int, units, transfer: dict, prov: dict, progress=None) -> str:
+                          rate: float, n_frames: int, units, transfer: dict, prov: dict, progress=None,
+                          head_motion: np.ndarray | None = None) -> str:
     """Stream time-sampled points into an animation layer (.usdc), saving after every chunk.
+
+    The layer sublayers the mesh layer it animates (relative path), so it imports alone as the
+    animated face; a shot stage that also sublayers the mesh composes it once more, harmlessly.
 
     Parameters
     ----------
@@ -152,14 +173,25 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | 
     transfer : dict
         FaceTransferAPI values: mode, kernel, distanceMethod, markerNames, widths, regularization,
         polynomial, conditionNumber, parameters (dict).
+    head_motion : ndarray (F, 4, 4), optional
+        Head motion for the face's root prim (:mod:`usdface.usd.motion`); the points stay
+        head-stabilised.
     """
     require_registered()
     mesh_stage = open_stage(mesh_path, what="mesh")
     mesh_prim_path = find_mesh(mesh_stage).GetPath()
     rest = None if rest_points is None else np.asarray(rest_points, dtype=np.float32)
-    with AtomicLayer(path) as stage:
-        set_stage_metadata(stage, units=units, default_prim=mesh_stage.GetDefaultPrim().GetName(), rate=rate,
-                           start=start, end=start + n_frames - 1)
+    root_name = mesh_stage.GetDefaultPrim().GetName()
+    with output_layer(path) as stage:
+        add_sublayer(stage, mesh_path, path)
+        set_stage_metadata(stage, units=units, default_prim=root_name, rate=rate, start=start,
+                           end=start + n_frames - 1)
+        if head_motion is not None:
+            from .motion import author_head_motion
+
+            if len(head_motion) != n_frames:
+                raise InputError(f"animation {path}: head motion has {len(head_motion)} frames, expected {n_frames}")
+            author_head_motion(stage, Sdf.Path("/" + root_name), head_motion, start=start)
         prim = stage.OverridePrim(mesh_prim_path)
         mesh = UsdGeom.Mesh(prim)
         prim.ApplyAPI(TRANSFER_API)
@@ -178,7 +210,6 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | 
         mesh.GetNormalsAttr().Block() if prim.HasAttribute("normals") else mesh.CreateNormalsAttr().Block()
         points_attr = mesh.CreatePointsAttr()
         extent_attr = mesh.CreateExtentAttr()
-        layer = stage.GetRootLayer()
         written = 0
         for item in prefetch(chunks):
             frames, pts = item[0], item[1]
@@ -191,7 +222,7 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | 
                 points_attr.Set(Vt.Vec3fArray.FromNumpy(pts[k]), t)
                 extent_attr.Set(Vt.Vec3fArray.FromNumpy(extents[k]), t)
             written += frames.stop - frames.start
-            layer.Save()  # appends in place: memory stays flat on long takes
+            checkpoint(stage)  # appends in place: memory stays flat on long takes
             if progress is not None:
                 progress.update(frames.stop - frames.start)
         if written != n_frames:
@@ -201,14 +232,21 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | 
 
 
 def write_shot_stage(path, *, layers: list, rate: float, start: float, end: float, units,
-                     default_prim: str = "Face", stabilized_capture: bool = False) -> str:
+                     default_prim: str = "Face", stabilized_capture: bool = False, record: dict | None = None) -> str:
     """A small .usda composing the given layers (strongest first) with relative asset paths.
 
     With ``stabilized_capture`` the markers are shown head-stabilised (the capture's head-motion op
     is dropped from /Capture's op order), so they stay on the stabilised face animation.
+    ``record`` (usdface.shot_commit.shot_record: the run id, every file's sha256 and provenance id)
+    goes into ``customLayerData["usdface"]["shot"]`` as JSON, for ``usdface check``.
     """
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         root = stage.GetRootLayer()
+        if record is not None:
+            from .. import __version__
+
+            set_provenance(stage, {"usdfaceVersion": __version__, "processor": "run",
+                                   "shot": json.dumps(record, sort_keys=True)})
         for layer in layers:
             root.subLayerPaths.append(relative_asset_path(layer, path))
         set_stage_metadata(stage, units=units, default_prim=default_prim, rate=rate, start=start, end=end)

@@ -21,7 +21,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 from ..capture.model import Capture
 from ..errors import InputError, MarkerError
 from ..units import METERS_PER_UNIT
-from .layers import AtomicLayer, open_stage, set_provenance, set_stage_metadata, stage_units
+from .layers import describe, open_stage, output_layer, set_provenance, set_stage_metadata, stage_units
 from .schemas import require_registered
 
 CAPTURE_PRIM = "/Capture"
@@ -68,7 +68,7 @@ def write_capture_layer(path: str | os.PathLike, capture: Capture, *, prov: dict
     valid = capture.valid
     held = hold_invalid(capture.positions, valid).astype(np.float32)
     start = capture.start_frame
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         set_stage_metadata(stage, units=capture.units, default_prim="Capture", rate=capture.rate,
                            start=start, end=start + capture.n_frames - 1)
         root = UsdGeom.Xform.Define(stage, CAPTURE_PRIM)
@@ -138,7 +138,7 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
     if not times:
         value = points_attr.Get()
         if value is None:
-            raise InputError(f"capture {path}: {prim.GetPath()} has no points")
+            raise InputError(f"capture {describe(path)}: {prim.GetPath()} has no points")
         times = [Usd.TimeCode.Default()]
     valid_attr = prim.GetAttribute("primvars:usdface:valid")
     # the head motion is the capture's own xformOp:transform on /Capture, not the composed
@@ -155,7 +155,7 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
             head.append(_matrix_from_usd(head_op.Get(tc)))
     positions = np.stack(pos)
     if positions.shape[1] != len(names):
-        raise InputError(f"capture {path}: {len(names)} marker names but {positions.shape[1]} points")
+        raise InputError(f"capture {describe(path)}: {len(names)} marker names but {positions.shape[1]} points")
     valid = np.stack(valid)
     positions[~valid] = np.nan
     head_motion = np.stack(head) if head else None
@@ -168,7 +168,7 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
     source_units = prim.GetAttribute("usdface:markerSet:sourceUnits").Get()
     units = source_units if source_units in METERS_PER_UNIT else stage_units(stage)
     return Capture(names=names, positions=positions, rate=float(rate), units=units, start_frame=start,
-                   neutral_frame=int(round(neutral_time)) - start, source=str(path),
+                   neutral_frame=int(round(neutral_time)) - start, source=describe(path),
                    head_motion=head_motion, history=tuple(history))
 
 

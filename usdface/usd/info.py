@@ -45,8 +45,13 @@ def describe(path: str | os.PathLike) -> dict:
                 "sourceUnits": prim.GetAttribute("usdface:markerSet:sourceUnits").Get(),
                 "neutralTime": prim.GetAttribute("usdface:markerSet:neutralTime").Get(),
                 "invalidSamples": invalid,
-                "headMotion": bool(UsdGeom.Xformable(prim.GetParent()).TransformMightBeTimeVarying()),
+                **_head_motion(prim),
             }
+        elif prim.IsA(UsdGeom.Xformable):
+            timed = [op.GetOpName() for op in UsdGeom.Xformable(prim).GetOrderedXformOps() if op.GetNumTimeSamples() > 1]
+            if timed:
+                entry["animatedTransform"] = {op: UsdGeom.Xformable(prim).GetPrim().GetAttribute(op).GetNumTimeSamples()
+                                              for op in timed}
         if prim.IsA(UsdGeom.Mesh):
             mesh = UsdGeom.Mesh(prim)
             pts_attr = mesh.GetPointsAttr()
@@ -89,6 +94,18 @@ def describe(path: str | os.PathLike) -> dict:
     return out
 
 
+def _head_motion(marker_prim) -> dict:
+    """Whether the capture carries head motion (its /Capture xformOp:transform is time-sampled),
+    and whether this stage applies it (a shot drops it from the op order to show the markers on
+    the stabilised face)."""
+    parent = marker_prim.GetParent()
+    attr = parent.GetAttribute("xformOp:transform") if parent else None
+    has = bool(attr) and attr.GetNumTimeSamples() > 1
+    applied = has and "xformOp:transform" in [op.GetOpName() for op in UsdGeom.Xformable(parent).GetOrderedXformOps()]
+    return {"headMotion": has, "headMotionApplied": applied,
+            "headMotionFrames": attr.GetNumTimeSamples() if has else 0}
+
+
 def format_description(d: dict) -> list[str]:
     """Human-readable lines for :func:`describe`'s result."""
     lines = [f"{d['file']}"]
@@ -108,8 +125,13 @@ def format_description(d: dict) -> list[str]:
             m = p["markerSet"]
             lines.append(f"      {m['markers']} markers, {m['frames']} frames at {m['captureRate']:g} Hz, "
                          f"source units {m['sourceUnits']}, neutral time {m['neutralTime']:g}, "
-                         f"{m['invalidSamples']} invalid samples, head motion: {'yes' if m['headMotion'] else 'no'}")
+                         f"{m['invalidSamples']} invalid samples, head motion: "
+                         + ("no" if not m["headMotion"] else
+                            "yes (removed by stabilisation; applied to the markers here)" if m["headMotionApplied"] else
+                            "yes (removed by stabilisation; markers shown stabilised here)"))
             lines.append(f"      from {m['sourceFile']}: {', '.join(m['names'][:8])}{', ...' if m['markers'] > 8 else ''}")
+        for op, n in p.get("animatedTransform", {}).items():
+            lines.append(f"      {op}: {n} time samples" + (" (head motion)" if p["path"] == f"/{d['defaultPrim']}" else ""))
         if "mesh" in p:
             m = p["mesh"]
             sizes = ", ".join(f"{v} {'tris' if k == 3 else 'quads' if k == 4 else f'{k}-gons'}" for k, v in m["faceSizes"].items())

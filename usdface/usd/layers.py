@@ -3,20 +3,24 @@
 Every layer usdface writes goes through :class:`AtomicLayer`: the layer is created at a temporary
 path in the destination folder (same extension, so the same file format), saved (as often as the
 caller likes, which keeps memory flat for long time-sampled .usdc writes), then renamed over the
-destination in one ``os.replace``. A failure leaves the destination as it was.
+destination in one ``os.replace``. A failure leaves the destination as it was, and a failure of
+the file system (disk full, read-only, permission; USD's own errors included) becomes one
+:class:`~usdface.errors.WriteError` naming the destination and the cause.
 """
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import os
-import secrets
 from pathlib import Path
 
-from pxr import Sdf, Usd, UsdGeom
+from pxr import Sdf, Tf, Usd, UsdGeom
 
 from .. import __version__
-from ..fileutil import file_digest, fsync_dir, fsync_file  # noqa: F401  (file_digest re-exported)
 from ..errors import InputError, OptionError
+from ..fileutil import (file_digest, fsync_dir, fsync_file, inject_fault, refuse_overwriting_inputs,  # noqa: F401
+                        set_default_mode, temporary_path, write_error)  # (file_digest re-exported)
 from ..units import meters_per_unit, unit_name
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
@@ -26,16 +30,28 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 OUTPUT_SUFFIXES = (".usd", ".usda", ".usdc")
 
 
-def check_output_path(path: str | os.PathLike, *, suffixes=OUTPUT_SUFFIXES, option: str = "-o") -> Path:
-    """Validate an output path before any work: existing folder, known suffix."""
+#: errors USD raises (a C++ TF_ERROR surfaces as Tf.ErrorException, a RuntimeError)
+USD_ERRORS = (Tf.ErrorException,)
+
+
+def check_output_path(path: str | os.PathLike, *, suffixes=OUTPUT_SUFFIXES, option: str = "-o",
+                      inputs: dict | None = None) -> Path:
+    """Validate an output path before any work: existing folder, known suffix, and not one of the
+    ``inputs`` (``{option: path}``), nor a file a USD input composes (see
+    :func:`usdface.fileutil.same_file_problems`). An in-memory target (an Sdf.Layer or a
+    Usd.Stage, from the Python API) is returned as it is."""
+    if is_in_memory(path):
+        return path
     p = Path(path)
+    if inputs:
+        refuse_overwriting_inputs({option: p}, with_composed_files(inputs))
     if p.suffix.lower() not in suffixes:
         raise OptionError(f"{option} {p}: expected a file ending in {' or '.join(suffixes)}")
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.is_dir():
         raise OptionError(f"{option} {p}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK):
-        raise OptionError(f"{option} {p}: folder {folder} is not writable")
+        raise write_error(p, PermissionError(13, "not writable"))
     return p
 
 
@@ -50,14 +66,18 @@ class AtomicLayer:
 
     def __init__(self, path: str | os.PathLike):
         self.path = check_output_path(path)
-        token = secrets.token_hex(4)
-        self.tmp_path = self.path.with_name(f".{self.path.stem}.tmp-{os.getpid()}-{token}{self.path.suffix}")
+        self.tmp_path = temporary_path(self.path)  # names its owner (pid@host): see usdface.shot_commit
         self.stage: Usd.Stage | None = None
 
     def __enter__(self) -> Usd.Stage:
-        layer = Sdf.Layer.CreateNew(str(self.tmp_path))
+        try:
+            inject_fault("create", self.path)
+            layer = Sdf.Layer.CreateNew(str(self.tmp_path))
+        except (OSError, *USD_ERRORS) as exc:
+            self._remove_tmp()
+            raise write_error(self.path, exc) from None
         if layer is None:
-            raise InputError(f"cannot create {self.tmp_path}")
+            raise write_error(self.path, None)
         self.stage = Usd.Stage.Open(layer)
         return self.stage
 
@@ -65,20 +85,36 @@ class AtomicLayer:
         layer = self.stage.GetRootLayer() if self.stage is not None else None
         try:
             if exc_type is None:
+                inject_fault("save", self.path)
                 if not layer.Save():
-                    raise InputError(f"could not write {self.tmp_path}")
+                    raise write_error(self.path, None)
                 fsync_file(self.tmp_path)
+                inject_fault("replace", self.path)
                 os.replace(self.tmp_path, self.path)
                 fsync_dir(self.path.parent)
-                mask = os.umask(0)
-                os.umask(mask)
-                os.chmod(self.path, 0o666 & ~mask)  # temp files come out 0600
+                set_default_mode(self.path)  # temp files come out 0600
+            elif self._is_own_write_failure(exc):
+                # a failure inside the block while saving this layer (intermediate saves of long .usdc writes)
+                raise write_error(self.path, exc) from None
+        except (OSError, *USD_ERRORS) as err:
+            raise write_error(self.path, err) from None
         finally:
             self.stage = None
             del layer
-            if self.tmp_path.exists():
-                self.tmp_path.unlink()
+            self._remove_tmp()
         return False
+
+    def _is_own_write_failure(self, exc) -> bool:
+        if isinstance(exc, USD_ERRORS):
+            return True
+        if isinstance(exc, OSError):
+            name = exc.filename
+            return name is None or Path(os.fspath(name)).name in (self.tmp_path.name, self.path.name)
+        return False
+
+    def _remove_tmp(self) -> None:
+        with contextlib.suppress(OSError):
+            self.tmp_path.unlink()
 
 
 def set_stage_metadata(stage: Usd.Stage, *, units: str | None, default_prim: str,
@@ -114,6 +150,10 @@ def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.Path
     for role, path in inputs.items():
         if path is None:
             continue
+        if is_in_memory(path):  # the Python API's in-memory input: no file, no digest
+            layer = path.GetRootLayer() if isinstance(path, Usd.Stage) else path
+            recorded[role] = {"layer": layer.GetDisplayName() or "anonymous", "inMemory": True}
+            continue
         recorded[role] = {"file": Path(path).name, "sha256": file_digest(path)}
     return {
         "usdfaceVersion": __version__,
@@ -134,8 +174,84 @@ def get_provenance(layer_or_stage) -> dict:
     return dict(layer.customLayerData.get("usdface", {}))
 
 
+def layer_provenance(path: str | os.PathLike) -> dict | None:
+    """The usdface provenance of a layer file (metadata only: large .usdc files are not loaded),
+    or None when the file cannot be opened or has none."""
+    p = Path(path)
+    try:
+        layer = Sdf.Layer.OpenAsAnonymous(str(p), metadataOnly=True) if p.suffix.lower() == ".usdc" else \
+            Sdf.Layer.FindOrOpen(str(p))
+    except USD_ERRORS:
+        return None
+    if layer is None:
+        return None
+    data = dict(layer.customLayerData)
+    return _plain(data["usdface"]) if "usdface" in data else None
+
+
+def _plain(value):
+    """customLayerData values as plain Python (VtDictionary -> dict, arrays -> lists)."""
+    if hasattr(value, "items"):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def provenance_id(prov: dict | None) -> str | None:
+    """A short id of a layer's provenance (sha256 of its canonical JSON): equal ids, same job on the
+    same input bytes."""
+    if prov is None:
+        return None
+    return hashlib.sha256(json.dumps(prov, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def composed_files(path: str | os.PathLike, *, limit: int = 64) -> list[str]:
+    """The local files a USD file composes (sublayers, references, payloads), recursively; [] for a
+    file that is not USD or cannot be opened (the processor reports that later)."""
+    p = Path(path)
+    if p.suffix.lower() not in USD_SUFFIXES or not p.is_file():
+        return []
+    seen, todo, found = set(), [str(p.resolve())], []
+    while todo and len(seen) < limit:
+        current = todo.pop()
+        if current in seen:
+            continue
+        seen.add(current)
+        try:
+            layer = Sdf.Layer.FindOrOpen(current)
+        except USD_ERRORS:
+            continue
+        if layer is None:
+            continue
+        for asset in layer.GetCompositionAssetDependencies():
+            target = layer.ComputeAbsolutePath(asset)
+            if target and os.path.isfile(target):
+                if target not in seen:
+                    found.append(target)
+                    todo.append(target)
+    return found
+
+
+def with_composed_files(inputs: dict) -> dict:
+    """``inputs`` ({option: path}) plus, for each USD input, the files it composes."""
+    out = {label: path for label, path in inputs.items() if not is_in_memory(path)}  # no file to clash with
+    for label, path in list(out.items()):
+        if path is None or isinstance(path, (list, tuple)):
+            continue
+        deps = composed_files(path)
+        if deps:
+            out[f"composed by {label} {path}"] = deps
+    return out
+
+
 def open_stage(path: str | os.PathLike, *, what: str = "layer") -> Usd.Stage:
-    """Open a USD file, with an error naming it when it is missing or unreadable."""
+    """Open a USD file, with an error naming it when it is missing or unreadable. A Usd.Stage is
+    returned as it is and an Sdf.Layer opened as a stage (in-memory input from the Python API)."""
+    if isinstance(path, Usd.Stage):
+        return path
+    if isinstance(path, Sdf.Layer):
+        return Usd.Stage.Open(path, Usd.Stage.LoadAll)
     p = Path(path)
     if not p.exists():
         raise InputError(f"{what} {p}: no such file")
@@ -155,3 +271,161 @@ def relative_asset_path(target: str | os.PathLike, from_layer: str | os.PathLike
     rel = os.path.relpath(Path(target).resolve(), Path(from_layer).resolve().parent)
     rel = rel.replace(os.sep, "/")
     return rel if rel.startswith(".") else "./" + rel
+
+
+# -- in-memory targets (the Python API) -----------------------------------------------------------
+
+def is_in_memory(target) -> bool:
+    """Whether ``target`` is a layer or stage object rather than a file path."""
+    return isinstance(target, (Sdf.Layer, Usd.Stage))
+
+
+def describe(source) -> str:
+    """A file path as given, or an in-memory stage/layer by its root layer's name (for messages)."""
+    if isinstance(source, Usd.Stage):
+        return f"in-memory stage {source.GetRootLayer().GetDisplayName() or source.GetRootLayer().identifier}"
+    if isinstance(source, Sdf.Layer):
+        return f"in-memory layer {source.GetDisplayName() or source.identifier}"
+    return str(source)
+
+
+def target_layer(target) -> Sdf.Layer:
+    """The layer an in-memory target means: the layer itself, or a stage's edit target layer."""
+    if isinstance(target, Sdf.Layer):
+        return target
+    edit = target.GetEditTarget()
+    if not edit.GetMapFunction().isIdentity:
+        raise OptionError("into: the stage's edit target maps paths (a variant or reference edit target); "
+                          "pass the Sdf.Layer to author into instead")
+    return edit.GetLayer()
+
+
+class InMemoryLayer:
+    """Author into an existing layer, all or nothing (the Python API's counterpart of AtomicLayer).
+
+    The processor authors into a private anonymous layer; only when the ``with`` block succeeds
+    are its opinions merged into the target (:func:`merge_layer`), so an error leaves the target
+    exactly as it was.
+    """
+
+    path = None
+
+    def __init__(self, target):
+        self.into = target_layer(target)
+        self.stage: Usd.Stage | None = None
+
+    def __enter__(self) -> Usd.Stage:
+        self.staged = Sdf.Layer.CreateAnonymous("usdface.usda")
+        self.stage = Usd.Stage.Open(self.staged)
+        return self.stage
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        if exc_type is None:
+            merge_layer(self.staged, self.into)
+        self.stage = None
+        return False
+
+
+def output_layer(target):
+    """The context manager a writer authors through: :class:`AtomicLayer` for a file path,
+    :class:`InMemoryLayer` for an Sdf.Layer or a Usd.Stage."""
+    return InMemoryLayer(target) if is_in_memory(target) else AtomicLayer(target)
+
+
+def checkpoint(stage: Usd.Stage) -> None:
+    """Save what a long write has authored so far (flat memory on long .usdc writes); nothing
+    to do for an in-memory target."""
+    layer = stage.GetRootLayer()
+    if not layer.anonymous:
+        layer.Save()
+
+
+def add_sublayer(stage: Usd.Stage, source, output) -> None:
+    """Sublayer ``source`` (the layer an output builds on, e.g. the mesh) by a path relative to
+    ``output``, so the output opens alone. In memory (either side) the caller composes: nothing."""
+    if is_in_memory(source) or is_in_memory(output) or output is None:
+        return
+    stage.GetRootLayer().subLayerPaths.append(relative_asset_path(source, output))
+
+
+def new_stage(layers) -> Usd.Stage:
+    """An in-memory stage sublayering ``layers`` (Sdf.Layer, Usd.Stage or file paths), with the
+    first one's units, up axis and default prim and the first time range found (see
+    :func:`usdface.api.new_stage`)."""
+    stage = Usd.Stage.CreateInMemory()
+    root = stage.GetRootLayer()
+    opened = []
+    for item in layers:
+        layer = item.GetRootLayer() if isinstance(item, Usd.Stage) else item if isinstance(item, Sdf.Layer) \
+            else Sdf.Layer.FindOrOpen(str(Path(item).resolve()))
+        if layer is None:
+            raise InputError(f"{item}: cannot be read as USD")
+        root.subLayerPaths.append(layer.identifier)
+        opened.append(layer)
+    if opened:
+        first = opened[0].pseudoRoot
+        for key in ("metersPerUnit", "upAxis", "defaultPrim"):
+            if first.HasInfo(key):
+                root.pseudoRoot.SetInfo(key, first.GetInfo(key))
+        timed = next((lay for lay in opened if lay.HasStartTimeCode() or lay.HasTimeCodesPerSecond()), None)
+        if timed is not None:
+            for key in ("timeCodesPerSecond", "framesPerSecond", "startTimeCode", "endTimeCode"):
+                if timed.pseudoRoot.HasInfo(key):
+                    root.pseudoRoot.SetInfo(key, timed.pseudoRoot.GetInfo(key))
+    stage._usdface_layers = opened  # keep anonymous sublayers alive as long as the stage
+    return stage
+
+
+_LAYER_FIELDS = ("defaultPrim", "metersPerUnit", "upAxis", "timeCodesPerSecond", "framesPerSecond",
+                 "startTimeCode", "endTimeCode")
+
+
+def merge_layer(src: Sdf.Layer, dst: Sdf.Layer) -> None:
+    """Merge the opinions of ``src`` into ``dst``: every property ``src`` authors replaces the same
+    property in ``dst`` (time samples included), prims and their metadata are added or updated
+    (applied schemas are unioned), everything else in ``dst`` stays. ``dst`` is replaced in one
+    step at the end (``TransferContent``), so a failure part-way leaves it unchanged."""
+    work = Sdf.Layer.CreateAnonymous("merge.usda")
+    work.TransferContent(dst)
+    for key in _LAYER_FIELDS:
+        if src.pseudoRoot.HasInfo(key):
+            work.pseudoRoot.SetInfo(key, src.pseudoRoot.GetInfo(key))
+    if src.customLayerData:
+        data = dict(work.customLayerData)
+        data.update(src.customLayerData)
+        work.customLayerData = data
+    for sub in src.subLayerPaths:
+        if sub not in work.subLayerPaths:
+            work.subLayerPaths.append(sub)
+
+    def merge_prim(spec: Sdf.PrimSpec) -> None:
+        path = spec.path
+        target = work.GetPrimAtPath(path)
+        if target is None:
+            Sdf.CopySpec(src, path, work, path)  # a new prim: its whole subtree
+            return
+        for key in spec.ListInfoKeys():
+            if key == "specifier":
+                if spec.specifier == Sdf.SpecifierDef:
+                    target.specifier = Sdf.SpecifierDef
+            elif key == "typeName":
+                if spec.typeName:
+                    target.typeName = spec.typeName
+            elif key == "apiSchemas":
+                have = list(target.GetInfo(key).GetAddedOrExplicitItems()) if target.HasInfo(key) else []
+                new = [s for s in spec.GetInfo(key).GetAddedOrExplicitItems() if s not in have]
+                op = Sdf.TokenListOp()
+                op.prependedItems = have + new
+                target.SetInfo(key, op)
+            else:
+                target.SetInfo(key, spec.GetInfo(key))
+        for prop in spec.properties:
+            if work.GetPropertyAtPath(prop.path) is not None:
+                work.GetPrimAtPath(path).RemoveProperty(work.GetPropertyAtPath(prop.path))
+            Sdf.CopySpec(src, prop.path, work, prop.path)
+        for child in spec.nameChildren:
+            merge_prim(child)
+
+    for root in src.rootPrims:
+        merge_prim(root)
+    dst.TransferContent(work)

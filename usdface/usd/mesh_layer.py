@@ -6,6 +6,7 @@ mesh by applied schema or as the default prim's first Mesh, not by a fixed path 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
@@ -13,7 +14,8 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 from ..errors import InputError, MeshError
 from ..mesh.model import Binding, FaceMesh, Region
 from .capture_layer import _matrix_from_usd, _matrix_to_usd, find_marker_set
-from .layers import AtomicLayer, open_stage, relative_asset_path, set_provenance, set_stage_metadata, stage_units
+from .layers import (add_sublayer, describe, is_in_memory, open_stage, output_layer, relative_asset_path, set_provenance,
+                     set_stage_metadata, stage_units)
 from .schemas import require_registered
 
 FACE_PRIM = "/Face"
@@ -73,7 +75,7 @@ def read_regions(prim: Usd.Prim) -> list[Region]:
 def write_mesh_layer(path: str | os.PathLike, mesh: FaceMesh, regions: list[Region], *, prov: dict) -> str:
     """Write a mesh layer (default prim /Face, mesh at /Face/Geom) atomically."""
     require_registered()
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         set_stage_metadata(stage, units=mesh.units, default_prim="Face")
         UsdGeom.Xform.Define(stage, FACE_PRIM)
         geom = author_mesh(stage, mesh)
@@ -130,11 +132,22 @@ def read_mesh_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = None) 
     """Read the face mesh and its regions from a USD file."""
     stage = stage or open_stage(path, what="mesh")
     prim = find_mesh(stage)
-    mesh = mesh_from_prim(prim, units=stage_units(stage), source=str(path))
+    mesh = mesh_from_prim(prim, units=stage_units(stage), source=describe(path))
     return mesh, read_regions(prim)
 
 
 # -- marker binding -------------------------------------------------------------------------------
+
+def _asset_path(source, output) -> str:
+    """How ``output`` refers to ``source``: relative between files; a file from an in-memory
+    layer by its absolute path; an in-memory layer by its identifier (valid in this session)."""
+    if is_in_memory(source):
+        layer = source.GetRootLayer() if isinstance(source, Usd.Stage) else source
+        return layer.identifier
+    if is_in_memory(output):
+        return str(Path(source).resolve())
+    return relative_asset_path(source, output)
+
 
 def write_binding_layer(path: str | os.PathLike, binding: Binding, *, mesh_path: str | os.PathLike,
                         capture_path: str | os.PathLike, mesh_units: str | None, prov: dict) -> str:
@@ -149,19 +162,24 @@ def write_binding_layer(path: str | os.PathLike, binding: Binding, *, mesh_path:
     cap_root = cap_stage.GetDefaultPrim()
     if not cap_root:
         raise InputError(f"capture {capture_path}: no default prim")
-    with AtomicLayer(path) as stage:
-        layer = stage.GetRootLayer()
-        layer.subLayerPaths.append(relative_asset_path(mesh_path, path))
+    # in memory, a stage that already holds the capture (a DCC's scene) keeps it where it is
+    same_stage = cap_stage is mesh_stage
+    with output_layer(path) as stage:
+        add_sublayer(stage, mesh_path, path)
         set_stage_metadata(stage, units=mesh_units, default_prim=mesh_stage.GetDefaultPrim().GetName(),
                            rate=cap_stage.GetTimeCodesPerSecond(), start=cap_stage.GetStartTimeCode(),
                            end=cap_stage.GetEndTimeCode())
-        cap = stage.DefinePrim("/Capture", "Xform")
-        cap.GetReferences().AddReference(relative_asset_path(capture_path, path))
-        xf = UsdGeom.Xformable(cap)
-        place = xf.AddTransformOp(opSuffix="captureToMesh")
-        place.Set(_matrix_to_usd(binding.capture_to_mesh))
-        # the referenced head-motion op stays after the placement: world = C2M @ head @ local
-        xf.SetXformOpOrder([place, UsdGeom.XformOp(cap.GetAttribute("xformOp:transform"))])
+        if same_stage:
+            marker_target = marker_path
+        else:
+            cap = stage.DefinePrim("/Capture", "Xform")
+            cap.GetReferences().AddReference(_asset_path(capture_path, path))
+            xf = UsdGeom.Xformable(cap)
+            place = xf.AddTransformOp(opSuffix="captureToMesh")
+            place.Set(_matrix_to_usd(binding.capture_to_mesh))
+            # the referenced head-motion op stays after the placement: world = C2M @ head @ local
+            xf.SetXformOpOrder([place, UsdGeom.XformOp(cap.GetAttribute("xformOp:transform"))])
+            marker_target = Sdf.Path("/Capture").AppendPath(marker_path.MakeRelativePath(cap_root.GetPath()))
         prim = stage.OverridePrim(mesh_prim_path)
         prim.ApplyAPI(BINDING_API)
         ns = "usdface:binding"
@@ -176,8 +194,7 @@ def write_binding_layer(path: str | os.PathLike, binding: Binding, *, mesh_path:
         prim.GetAttribute(f"{ns}:method").Set(binding.method)
         prim.GetAttribute(f"{ns}:captureToMesh").Set(_matrix_to_usd(binding.capture_to_mesh))
         prim.GetAttribute(f"{ns}:unitScale").Set(float(binding.unit_scale))
-        prim.GetRelationship(f"{ns}:markerSet").SetTargets(
-            [Sdf.Path("/Capture").AppendPath(marker_path.MakeRelativePath(cap_root.GetPath()))])
+        prim.GetRelationship(f"{ns}:markerSet").SetTargets([marker_target])
         set_provenance(stage, prov)
     return str(path)
 

@@ -9,10 +9,10 @@ Rig layer (``usdface muscles``, .usda)::
         /zygomaticMajor_L  BasisCurves + FaceMuscleAPI: a 2-point curve origin -> insertion
         /orbicularisOris   BasisCurves + FaceMuscleAPI: the ellipse (closed, 32 points) in its plane
 
-Animation layer (``usdface simulate`` / ``fit-muscles``, .usdc): ``over``s only — time-sampled
-points and extent on the mesh prim, ``usdface:muscle:contraction`` samples on each muscle prim and
-``usdface:jaw:opening`` samples on /Face/Muscles, so composing it over the rig layer animates the
-face and shows which muscles drive it.
+Animation layer (``usdface simulate`` / ``fit-muscles``, .usdc): sublayers the rig and the mesh
+layer (so it opens alone as the animated face), then ``over``s with time-sampled points and extent
+on the mesh prim, ``usdface:muscle:contraction`` samples on each muscle prim and
+``usdface:jaw:opening`` samples on /Face/Muscles, showing which muscles drive the face.
 """
 from __future__ import annotations
 
@@ -25,7 +25,8 @@ from ..errors import InputError
 from ..tissue.muscles import Muscle
 from ..tissue.rig import MuscleRig
 from ..units import scale_between
-from .layers import AtomicLayer, open_stage, relative_asset_path, set_provenance, set_stage_metadata, stage_units
+from .layers import (add_sublayer, checkpoint, open_stage, output_layer, set_provenance, set_stage_metadata,
+                     stage_units)
 from .mesh_layer import GEOM_PRIM, find_mesh
 from .schemas import require_registered
 
@@ -73,9 +74,9 @@ def write_rig_layer(path, rig: MuscleRig, *, mesh_path=None, mesh_prim_path: str
         default_prim = dp.GetName() if dp else default_prim
     else:
         mesh_path = None
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         if mesh_path is not None:
-            stage.GetRootLayer().subLayerPaths.append(relative_asset_path(mesh_path, path))
+            add_sublayer(stage, mesh_path, path)
         set_stage_metadata(stage, units=units, default_prim=default_prim)
         if not stage.GetPrimAtPath(f"/{default_prim}"):
             UsdGeom.Xform.Define(stage, f"/{default_prim}")
@@ -201,8 +202,12 @@ def rig_prim_paths(path, *, stage: Usd.Stage | None = None) -> tuple[str, dict]:
 
 def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, rest_points: np.ndarray, start: float,
                                  rate: float, n_frames: int, units, muscle_names, contractions: np.ndarray,
-                                 jaw: np.ndarray, prov: dict, time_codes=None, progress=None) -> str:
-    """Stream a simulated animation into a .usdc layer of overs (saved after every chunk).
+                                 jaw: np.ndarray, prov: dict, time_codes=None, progress=None, mesh=None) -> str:
+    """Stream a simulated animation into a .usdc layer (saved after every chunk).
+
+    The layer stands alone: it sublayers the rig layer (muscles) and the mesh layer it animates
+    (or, for a mesh that is not a USD layer, defines the mesh from ``mesh``, a FaceMesh), then
+    holds the time-sampled points and contractions as overs.
 
     Parameters
     ----------
@@ -234,7 +239,14 @@ def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, rest_poin
         np.asarray(time_codes, dtype=np.float64)
     if codes.size != n_frames:
         raise InputError(f"animation {path}: {codes.size} time codes for {n_frames} frames")
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
+        add_sublayer(stage, rig_path, path)
+        if mesh_stage is not None:
+            add_sublayer(stage, mesh_path, path)
+        elif mesh is not None:
+            from .mesh_layer import author_mesh
+
+            author_mesh(stage, mesh, str(mesh_prim_path))
         set_stage_metadata(stage, units=units, default_prim=default_prim, rate=rate, start=float(codes[0]),
                            end=float(codes[-1]))
         prim = stage.OverridePrim(mesh_prim_path)
@@ -250,7 +262,6 @@ def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, rest_poin
                 raise InputError(f"rig {rig_path}: no muscle prim {name!r}")
             p = stage.OverridePrim(muscle_paths[name])
             c_attrs.append(p.CreateAttribute(f"{NS}:contraction", Sdf.ValueTypeNames.Float))
-        layer = stage.GetRootLayer()
         written = 0
         for frames, pts in chunks:
             pts = np.asarray(pts, dtype=np.float32)
@@ -263,7 +274,7 @@ def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, rest_poin
                     attr.Set(float(a), t)
                 jaw_attr.Set(float(jaw[f]), t)
             written += frames.stop - frames.start
-            layer.Save()
+            checkpoint(stage)
             if progress is not None:
                 progress.update(frames.stop - frames.start)
         if written != n_frames:

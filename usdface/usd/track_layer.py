@@ -27,7 +27,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 from ..capture.model import Capture
 from ..errors import InputError, MarkerError
 from .capture_layer import CAPTURE_PRIM, MARKER_SET_API, MARKERS_PRIM, hold_invalid, read_capture_layer
-from .layers import AtomicLayer, open_stage, set_provenance, set_stage_metadata
+from .layers import output_layer, open_stage, set_provenance, set_stage_metadata
 from .schemas import require_registered
 
 __all__ = ["write_track_layer", "read_track_layer"]
@@ -69,7 +69,7 @@ def write_track_layer(path: str | os.PathLike, capture: Capture, *, confidence: 
     held[..., 2] = 0.0
     w, h = (int(v) for v in image_size)
     start = capture.start_frame
-    with AtomicLayer(path) as stage:
+    with output_layer(path) as stage:
         set_stage_metadata(stage, units=None, default_prim="Capture", rate=capture.rate, start=start,
                            end=start + f_count - 1)
         root = UsdGeom.Xform.Define(stage, CAPTURE_PRIM)

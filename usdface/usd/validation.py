@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from pxr import Usd, UsdGeom, UsdValidation
@@ -153,15 +154,20 @@ def _check_distance_matrices(prim: Usd.Prim, time_range=None):
         ns = f"usdface:distanceMatrix:{name}"
         names = prim.GetAttribute(f"{ns}:markerNames").Get() or []
         m = len(names) + len(prim.GetAttribute(f"{ns}:constraintVertices").Get() or [])
-        primvar = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{name}")
-        if not primvar or not primvar.HasValue():
-            errors.append(_err(prim, "DistanceMatrixMissing", f"distance matrix {name!r}: primvars:usdface:distance:{name} missing"))
+        from .analysis_layer import vertex_distances
+
+        values = vertex_distances(prim, name)
+        if values is None:
+            errors.append(_err(prim, "DistanceMatrixMissing",
+                               f"distance matrix {name!r}: {ns}:vertexDistances missing"))
             continue
-        values = np.asarray(primvar.Get())
-        if primvar.GetElementSize() != m or values.size != n_points * m:
+        legacy = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"usdface:distance:{name}")
+        size_ok = values.size == n_points * m and (not legacy or not legacy.HasValue()
+                                                    or legacy.GetElementSize() == m)
+        if not size_ok:
             errors.append(_err(prim, "DistanceMatrixShape",
-                               f"distance matrix {name!r}: {values.size} values with elementSize {primvar.GetElementSize()}, "
-                               f"expected {n_points} vertices x {m} centres"))
+                               f"distance matrix {name!r}: {values.size} values, expected {n_points} vertices x "
+                               f"{m} centres"))
         elif not np.isfinite(values).all() or (values < 0).any():
             errors.append(_err(prim, "DistanceMatrixValues", f"distance matrix {name!r} has negative, NaN or inf entries"))
         mm = prim.GetAttribute(f"{ns}:centreDistances").Get()
@@ -214,6 +220,12 @@ def register_validators() -> None:
     if _registered:
         return
     reg = UsdValidation.ValidationRegistry()
+    if not hasattr(reg, "RegisterPrimValidator"):  # UsdValidation's Python registration came in USD 25.05
+        from ..errors import DependencyError
+
+        raise DependencyError(f"usdface check needs USD 25.05 or newer (UsdValidation with Python validators); this "
+                              f"USD is {Usd.GetVersion()[1]}.{Usd.GetVersion()[2]:02d} (Blender 4.5 ships 25.02): check the "
+                              "layers with usd-core (pip install usd-core)")
     for name, schema_type, fn, doc in _RULES:
         if reg.HasValidator(name):
             continue
@@ -236,8 +248,47 @@ def _is_image_track_layer(stage: Usd.Stage) -> bool:
     return bool(sets) and all(p.GetAttribute("usdface:markerSet:dimensions").Get() == 2 for p in sets)
 
 
+SHOT_RULE = "usdface:ShotIntegrity"
+
+
+def check_shot_integrity(path: str | os.PathLike) -> list[Finding]:
+    """A shot stage written by `usdface run` against the files beside it: every file it lists
+    present, with the sha256 and provenance id it was committed with (no mix of two runs, nothing
+    missing); a shot stage missing because a commit was interrupted is an error too."""
+    from ..shot_commit import interrupted_commit, read_shot_record, verify_shot
+
+    p = Path(path)
+    folder = p.parent
+    pending = interrupted_commit(folder) if folder.is_dir() else None
+    if not p.exists():
+        if pending is not None and p.name in pending.get("files", []):
+            return [Finding("error", SHOT_RULE, str(p),
+                            f"{p.name} is missing: a run (id {pending.get('runId')}) was stopped while committing "
+                            f"{folder} ({len(pending['pending'])} file(s) not yet in place); the next `usdface run` "
+                            "into this folder completes the commit (or run it again)")]
+        return []
+    findings = []
+    problems = verify_shot(p)
+    if problems:
+        run = (read_shot_record(p) or {}).get("runId")
+        findings.append(Finding("error", SHOT_RULE, str(p),
+                                f"mixed or incomplete shot (run {run}): {'; '.join(problems)}; run `usdface run` "
+                                f"into {folder} again to repair it"))
+    if pending is not None and read_shot_record(p) is not None:
+        findings.append(Finding("warning", SHOT_RULE, str(p),
+                                f"{folder} holds an interrupted commit of run {pending.get('runId')} "
+                                f"({pending['folder']}); the next `usdface run` into this folder completes it"))
+    return findings
+
+
 def check_layer(path: str | os.PathLike) -> list[Finding]:
-    """Run every UsdValidation validator (USD's and usdface's) on the stage opened from ``path``."""
+    """Run every UsdValidation validator (USD's and usdface's) on the stage opened from ``path``,
+    and, for a shot stage written by `usdface run`, :func:`check_shot_integrity`."""
+    from .layers import is_in_memory
+
+    integrity = [] if is_in_memory(path) else check_shot_integrity(path)  # shots are files
+    if any(f.severity == "error" and ("missing" in f.message) for f in integrity):
+        return integrity  # composing a shot with missing layers adds nothing but USD's warnings
     register_validators()
     stage = open_stage(path, what="file")
     validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
@@ -252,9 +303,13 @@ def check_layer(path: str | os.PathLike) -> list[Finding]:
             s = sites[0]
             site = str(s.GetPrim().GetPath()) if s.IsPrim() else (s.GetLayer().identifier if s.GetLayer() else "")
         severity, message = _SEVERITY.get(error.GetType(), "error"), error.GetMessage()
+        if "UnresolvableDependency" in error.GetIdentifier() and "'anon:" in message:
+            # an in-memory layer (Python API) resolves in this session, not through the asset resolver
+            severity, message = "warning", message + " (an in-memory layer: resolvable in this session only)"
         if image_space and "MissingMetersPerUnit" in error.GetIdentifier():
             # 2D tracks are in pixels: no metric scale exists, and a made-up one would mislead
             severity, message = "warning", message + " (a 2D image-track layer: pixels have no metric scale)"
         findings.append(Finding(severity, error.GetIdentifier(), site, message))
+    findings += integrity
     findings.sort(key=lambda f: (f.severity != "error", f.rule, f.site))
     return findings

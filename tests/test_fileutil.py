@@ -1,0 +1,120 @@
+"""usdface.fileutil: outputs are never inputs, owners of temporaries, atomic writes under injected
+faults (EACCES, EROFS, ENOSPC at every point), one line for every failure."""
+from __future__ import annotations
+
+import errno
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from usdface.errors import OptionError, WriteError
+from usdface.fileutil import (FAULT_ENV, HOST_TAG, atomic_write, describe_exception, failure_cause, owner_is_dead,
+                              process_alive, refuse_overwriting_inputs, same_file_problems, temporary_owner,
+                              temporary_path)
+
+
+def _dead_pid() -> int:
+    p = subprocess.Popen([sys.executable, "-c", "pass"])
+    p.wait()
+    return p.pid
+
+
+# -- outputs are never inputs ---------------------------------------------------------------------
+
+def test_same_path_dotdot_symlink_and_hard_link_are_one_file(tmp_path):
+    src = tmp_path / "cap.usdc"
+    src.write_bytes(b"take")
+    (tmp_path / "x").mkdir()
+    inputs = {"input": src}
+    assert same_file_problems({"-o": src}, inputs)                      # the same name
+    assert same_file_problems({"-o": tmp_path / "x" / ".." / "cap.usdc"}, inputs)  # x/../cap.usdc
+    (tmp_path / "link.usdc").symlink_to(src)
+    msg = same_file_problems({"-o": tmp_path / "link.usdc"}, inputs)    # a symbolic link to the input
+    assert msg and "cap.usdc" in msg[0] and "link.usdc" in msg[0]
+    os.link(src, tmp_path / "hard.usdc")
+    msg = same_file_problems({"-o": tmp_path / "hard.usdc"}, inputs)    # a hard link: same inode
+    assert msg and "hard link" in msg[0]
+    (tmp_path / "dirlink").symlink_to(tmp_path, target_is_directory=True)
+    assert same_file_problems({"-o": tmp_path / "dirlink" / "cap.usdc"}, inputs)  # through a linked folder
+    assert same_file_problems({"-o": tmp_path / "new.usdc"}, inputs) == []        # a new file is fine
+    assert same_file_problems({"-o": tmp_path / "x" / "cap.usdc"}, inputs) == []  # same name, other folder
+    with pytest.raises(OptionError, match=r"-o .*cap\.usdc would overwrite the input .*cap\.usdc \(input\)"):
+        refuse_overwriting_inputs({"-o": src}, inputs)
+
+
+def test_composed_files_of_a_usd_input_are_inputs_too(tmp_path):
+    from pxr import Sdf
+
+    from usdface.usd.layers import check_output_path, composed_files
+
+    Sdf.Layer.CreateNew(str(tmp_path / "mesh.usda")).Save()
+    top = Sdf.Layer.CreateNew(str(tmp_path / "binding.usda"))
+    top.subLayerPaths.append("./mesh.usda")
+    top.Save()
+    assert composed_files(tmp_path / "binding.usda") == [str((tmp_path / "mesh.usda").resolve())]
+    with pytest.raises(OptionError, match=r"would overwrite the input .*mesh\.usda \(composed by --mesh"):
+        check_output_path(tmp_path / "mesh.usda", inputs={"--mesh": tmp_path / "binding.usda"})
+
+
+# -- temporaries name their owner -----------------------------------------------------------------
+
+def test_temporary_names_carry_pid_and_host():
+    t = temporary_path("/x/anim.usdc")
+    assert t.suffix == ".usdc" and t.name.startswith(".anim.tmp-")
+    assert temporary_owner(t.name) == (os.getpid(), HOST_TAG)
+    assert temporary_owner(".anim.tmp-123-ab12cd34.usdc") == (123, None)          # before host tags
+    assert temporary_owner(".usdface-run-77@farm_1-0a1b2c3d") == (77, "farm_1")
+    assert temporary_owner(".usdface-run-x8q2m1") is None                          # no owner in the name
+
+
+def test_owner_is_dead_only_when_known():
+    now = time.time()
+    dead = _dead_pid()
+    assert not process_alive(dead)
+    assert owner_is_dead(f".a.tmp-{dead}@{HOST_TAG}-00.usdc", now) is True
+    assert owner_is_dead(f".a.tmp-{os.getpid()}@{HOST_TAG}-00.usdc", now) is False
+    assert owner_is_dead(f".a.tmp-{dead}@another_host-00.usdc", now) is None        # cannot ask another host
+    assert owner_is_dead(f".a.tmp-{dead}-00.usdc", now) is None                     # no host in the name
+    # a live pid that started after the temporary was written is a reused pid: the owner is dead
+    assert owner_is_dead(f".a.tmp-1@{HOST_TAG}-00.usdc", 0.0) is True                # pid 1 started after 1970
+    assert owner_is_dead(f".a.tmp-1@{HOST_TAG}-00.usdc", now) is False
+
+
+# -- atomic writes under injected faults ----------------------------------------------------------
+
+@pytest.mark.parametrize("code,cause", [("EACCES", "permission denied"), ("EROFS", "read-only file system"),
+                                        ("ENOSPC", "disk full")])
+@pytest.mark.parametrize("point", ["create", "save", "replace"])
+def test_atomic_write_fault_leaves_old_file_and_no_temporary(tmp_path, monkeypatch, code, cause, point):
+    out = tmp_path / "summary.json"
+    out.write_text("old\n")
+    monkeypatch.setenv(FAULT_ENV, f"{code}:{point}:summary.json")
+    with pytest.raises(WriteError) as info:
+        with atomic_write(out) as f:
+            f.write("new\n")
+    assert str(info.value).startswith(f"cannot write {out}: {cause}")
+    assert out.read_text() == "old\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]
+    monkeypatch.setenv(FAULT_ENV, f"{code}:{point}:other.json")  # the hook matches names
+    with atomic_write(out) as f:
+        f.write("new\n")
+    assert out.read_text() == "new\n"
+
+
+def test_failure_cause_and_one_line_descriptions(tmp_path):
+    assert failure_cause(tmp_path / "a", OSError(errno.ENOSPC, "No space left on device")).startswith("disk full (")
+    assert failure_cause(tmp_path / "a", OSError(errno.EROFS, "x")) == "read-only file system"
+    assert failure_cause(tmp_path / "a", OSError(errno.EACCES, "x")) == "permission denied"
+    text = describe_exception(PermissionError(errno.EACCES, "Permission denied", "/data/take.c3d"))
+    assert text == "/data/take.c3d: permission denied"
+    assert describe_exception(MemoryError("Unable to allocate 92.8 GiB for an array")).startswith(
+        "out of memory: Unable to allocate 92.8 GiB")
+    from pxr import Sdf
+
+    with pytest.raises(Exception) as info:  # a real Tf.ErrorException: long C++ text, no errno
+        Sdf.Layer.CreateNew("/proc/a.usda")
+    line = describe_exception(info.value)
+    assert line.startswith("USD error: ") and "\n" not in line and "pxrInternal" not in line

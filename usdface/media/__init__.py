@@ -1,0 +1,8 @@
+"""Review media: H.264 movies (PyAV, the ``media`` extra) written atomically and read back.
+
+No pxr and no cv2 here; PyAV is imported on first use, so ``import usdface`` works without it and
+a missing encoder fails with the extra to install named.
+"""
+from .movie import MOVIE_SUFFIXES, MovieWriter, movie_info, read_movie, require_encoder
+
+__all__ = ["MOVIE_SUFFIXES", "MovieWriter", "movie_info", "read_movie", "require_encoder"]

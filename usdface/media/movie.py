@@ -1,0 +1,215 @@
+"""H.264 movies that browsers and editors play, written and read back with PyAV.
+
+PyAV (pip ``av``, BSD-3-Clause) ships FFmpeg and the x264 encoder inside its wheel, so no system
+FFmpeg is needed: ``pip install "usdface[media]"``. Movies are H.264 (libx264), yuv420p (the
+chroma layout every player decodes), in an .mp4 whose index sits at the front (``faststart``,
+so a browser starts playing before the whole file has arrived), one frame per time sample at a
+constant rate. OpenCV's ``mp4v`` writer is not used: browsers do not play MPEG-4 part 2.
+
+Writes are atomic: frames go to a temporary file in the destination folder, which is renamed
+over the destination only when the movie is complete; a failure or an interruption removes it.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DependencyError, InputError, OptionError, ResourceError
+from ..fileutil import fsync_dir, fsync_file
+
+__all__ = ["MOVIE_SUFFIXES", "MovieWriter", "movie_info", "read_movie", "require_encoder"]
+
+MOVIE_SUFFIXES = (".mp4", ".m4v", ".mov")
+#: the extra that installs PyAV
+EXTRA = "media"
+_INSTALL = f'pip install "usdface[{EXTRA}]" (PyAV, which ships FFmpeg with the x264 encoder in its wheel)'
+
+
+def _av():
+    try:
+        import av
+    except ImportError as exc:
+        raise DependencyError(f"movies need PyAV, which is not installed: {_INSTALL}") from exc
+    return av
+
+
+def require_encoder(codec: str = "libx264"):
+    """PyAV, checked to have the H.264 encoder; a clear error naming what to install otherwise."""
+    av = _av()
+    try:
+        av.codec.Codec(codec, "w")
+    except Exception:  # av raises its own UnknownCodecError (a ValueError subclass in some versions)
+        raise DependencyError(f"the FFmpeg inside PyAV {getattr(av, '__version__', '?')} has no {codec} (H.264) "
+                              f"encoder: {_INSTALL}; a PyAV built against a system FFmpeg without x264 cannot "
+                              "write browser-playable movies") from None
+    return av
+
+
+def rate_fraction(rate: float) -> Fraction:
+    """The frame rate as a fraction (29.97 -> 30000/1001, 60 -> 60)."""
+    r = float(rate)
+    if not (np.isfinite(r) and 0 < r <= 1000):
+        raise OptionError(f"movie frame rate {rate}: expected 0 < rate <= 1000")
+    if abs(round(r) - r) < 1e-6 * r:
+        return Fraction(round(r))
+    num = round(r * 1.001)  # NTSC-style rates written to 2-3 decimals: 29.97, 59.94, 23.976
+    if num % 1 == 0 and abs(num * 1000 / 1001 - r) < 1e-4 * r:
+        return Fraction(num * 1000, 1001)
+    return Fraction(r).limit_denominator(100000)
+
+
+class MovieWriter:
+    """Write BGR frames (OpenCV order) into an H.264 mp4, atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        Destination, ``.mp4`` (or ``.m4v``/``.mov``); its folder must exist and be writable.
+    size : (int, int)
+        Frame (width, height) in pixels; both even (yuv420p halves the chroma planes).
+    rate : float
+        Frames per second (one frame per time sample).
+    crf : int
+        x264 constant rate factor (0 lossless .. 51; 18 looks lossless on these renders).
+    preset : str
+        x264 speed/size trade-off (``ultrafast`` .. ``veryslow``).
+    threads : int
+        Encoder threads (0: FFmpeg's choice).
+
+    Use as a context manager: ``with MovieWriter(p, (960, 540), 60) as w: w.write(img)``; the
+    movie exists at ``path`` only after a clean exit.
+    """
+
+    def __init__(self, path, size, rate: float, *, crf: int = 18, preset: str = "veryfast", threads: int = 0,
+                 metadata: dict | None = None):
+        self.path = Path(os.fspath(path))
+        if self.path.suffix.lower() not in MOVIE_SUFFIXES:
+            raise OptionError(f"-o {self.path}: a movie is an .mp4 file (H.264)")
+        w, h = (int(v) for v in size)
+        if w < 16 or h < 16 or w % 2 or h % 2:
+            raise OptionError(f"--size {w}x{h}: H.264 (yuv420p) needs an even width and height, 16 or more")
+        if not 0 <= int(crf) <= 51:
+            raise OptionError(f"crf {crf}: expected 0..51")
+        self.size = (w, h)
+        self.rate = rate_fraction(rate)
+        self._av = require_encoder()
+        folder = self.path.parent if str(self.path.parent) else Path(".")
+        if not folder.is_dir():
+            raise InputError(f"cannot write movie {self.path}: folder {folder} does not exist")
+        if self.path.is_dir():
+            raise InputError(f"cannot write movie {self.path}: it is a folder")
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=self.path.suffix, dir=folder)
+        except OSError as exc:
+            raise InputError(f"cannot write movie {self.path}: {exc.strerror or exc}") from None
+        os.close(fd)
+        self._tmp = Path(tmp)
+        self.frames = 0
+        try:
+            self._container = self._av.open(str(self._tmp), "w", format="mp4", options={"movflags": "+faststart"})
+            for k, v in (metadata or {}).items():
+                self._container.metadata[str(k)] = str(v)
+            stream = self._container.add_stream("libx264", rate=self.rate)
+            stream.width, stream.height = w, h
+            stream.pix_fmt = "yuv420p"
+            stream.options = {"crf": str(int(crf)), "preset": str(preset)}
+            stream.thread_count = int(threads)
+            stream.codec_context.time_base = Fraction(1, 1) / self.rate
+            self._stream = stream
+        except BaseException:
+            self._discard()
+            raise
+
+    def write(self, image: np.ndarray) -> None:
+        """Append one (H, W, 3) uint8 BGR frame of the writer's size."""
+        img = np.asarray(image)
+        if img.shape != (self.size[1], self.size[0], 3) or img.dtype != np.uint8:
+            raise OptionError(f"movie frame {self.frames}: expected ({self.size[1]}, {self.size[0]}, 3) uint8; "
+                              f"got {img.shape} {img.dtype}")
+        frame = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="bgr24")
+        frame.pts = self.frames
+        self._mux(self._stream.encode(frame))
+        self.frames += 1
+
+    def _mux(self, packets) -> None:
+        try:
+            self._container.mux(packets)
+        except OSError as exc:
+            if exc.errno == 28:
+                raise ResourceError(f"cannot write movie {self.path}: disk full") from None
+            raise InputError(f"cannot write movie {self.path}: {exc.strerror or exc}") from None
+
+    def close(self) -> Path:
+        """Flush the encoder, finish the file and rename it into place."""
+        if self.frames == 0:
+            self._discard()
+            raise InputError(f"movie {self.path}: no frames to write")
+        self._mux(self._stream.encode())
+        self._container.close()
+        self._container = None
+        try:
+            fsync_file(self._tmp)
+            mask = os.umask(0)
+            os.umask(mask)
+            os.chmod(self._tmp, 0o666 & ~mask)
+            os.replace(self._tmp, self.path)
+        except OSError as exc:
+            self._discard()
+            raise InputError(f"cannot write movie {self.path}: {exc.strerror or exc}") from None
+        fsync_dir(self.path.parent if str(self.path.parent) else ".")
+        return self.path
+
+    def _discard(self) -> None:
+        container = getattr(self, "_container", None)
+        if container is not None:
+            try:
+                container.close()
+            except Exception:  # an encoder error leaves the container half-open: the file goes anyway
+                pass
+            self._container = None
+        try:
+            self._tmp.unlink()
+        except (OSError, AttributeError):
+            pass
+
+    def __enter__(self) -> "MovieWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        if exc_type is None:
+            self.close()
+        else:
+            self._discard()
+        return False
+
+
+def movie_info(path) -> dict:
+    """Codec, pixel format, size, rate, frame count and duration of a movie's video stream."""
+    av = _av()
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"movie {path}: no such file")
+    try:
+        with av.open(str(path)) as c:
+            s = c.streams.video[0]
+            info = {"codec": s.codec_context.name, "pixelFormat": s.codec_context.pix_fmt,
+                    "width": s.codec_context.width, "height": s.codec_context.height,
+                    "rate": float(s.average_rate) if s.average_rate else None, "frames": int(s.frames),
+                    "duration": float(s.duration * s.time_base) if s.duration else None,
+                    "format": c.format.name}
+    except (av.error.FFmpegError if hasattr(av, "error") else OSError, IndexError) as exc:
+        raise InputError(f"movie {path}: cannot be read ({exc})") from None
+    return info
+
+
+def read_movie(path, *, every: int = 1):
+    """Yield ``(index, bgr_image)`` for every ``every``-th decoded frame of a movie (all by default)."""
+    av = _av()
+    with av.open(str(path)) as c:
+        for i, frame in enumerate(c.decode(video=0)):
+            if i % every == 0:
+                yield i, frame.to_ndarray(format="bgr24")

@@ -1,0 +1,490 @@
+"""The animated face mesh of any stage, evaluated at any time code, as USD composes it.
+
+One evaluator for every deliverable: a point cache (time-sampled ``points``), a UsdSkel
+skeleton (linear or dual-quaternion blend skinning), UsdSkel blend shapes (applied before
+skinning, as UsdSkel specifies), and time-sampled transforms on the mesh's ancestors (the head
+motion on ``/Face``). It works on a layer opened alone (``anim.usdc``, ``skel.usdc``, a
+blend-shape or simulate output) and on a composed shot (``shot.usda``, ``shot_skel.usda``).
+
+Build once, query many times (a playblast evaluates every frame)::
+
+    ev = FaceEvaluator.open("shot_skel.usda")        # or FaceEvaluator(stage)
+    ev.time_codes, ev.rate                           # every time code that moves the face
+    p = ev.points(441)                               # (N, 3) float64, world space
+    P = ev.points_range(ev.time_codes, space="mesh") # (F, N, 3)
+
+Spaces (the stage's units):
+
+- ``"world"``: what a viewer shows, every ancestor transform applied;
+- ``"mesh"``: the mesh prim's own space, the space its ``points`` attribute is authored in
+  (usdface's stabilised mesh space; the head motion on ``/Face`` is not in it). A skinned mesh is
+  taken there from skeleton space the way ``UsdSkel.BakeSkinning`` bakes it:
+  ``skinned * skelLocalToWorld * inverse(meshLocalToWorld)``.
+
+The deformation follows UsdSkel exactly, through UsdSkel itself (``UsdSkel.Cache``,
+``SkeletonQuery.ComputeSkinningTransforms``, ``BlendShapeQuery``, ``UsdSkel.SkinPoints``): a
+mesh is skinned only under a ``SkelRoot`` with a bound Skeleton that has a bind pose, blend
+shapes apply only when the Skeleton's animation has ``blendShapes`` weights, joint and blend-shape
+orders are remapped from the animation to the mesh, rigid (constant-interpolation) influences move
+the whole mesh. Matrices returned here are numpy column-vector 4 x 4 (``M @ [x, y, z, 1]``).
+"""
+from __future__ import annotations
+
+import logging
+import os
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+
+from ..errors import InputError, OptionError
+from .layers import open_stage, stage_units
+from .mesh_layer import find_mesh
+
+log = logging.getLogger("usdface")
+
+SPACES = ("world", "mesh")
+_CHUNK_FRAMES = 64  # frames per chunk of iter_points (64 x 20k points x 3 doubles = 31 MB)
+_IDENTITY = np.eye(4)
+
+
+def _transform_into(p: np.ndarray, m: np.ndarray, out: np.ndarray) -> None:
+    """out = p (N, 3) moved by the row-vector 4 x 4 ``m``, computed in float64."""
+    if np.array_equal(m, _IDENTITY):
+        out[...] = p
+        return
+    # a 2-D product: numpy's stacked matmul of (N, 3) x (3, 3) is much slower
+    moved = np.dot(np.asarray(p, dtype=np.float64), np.ascontiguousarray(m[:3, :3]),
+                   out=out if out.dtype == np.float64 and out.flags.c_contiguous else None)
+    moved += m[3, :3]
+    if moved is not out:
+        out[...] = moved
+
+
+def _check_space(space: str) -> str:
+    if space not in SPACES:
+        raise OptionError(f"space {space!r}: expected one of {', '.join(SPACES)}")
+    return space
+
+
+def _row(m) -> np.ndarray:
+    """A Gf matrix (row-vector convention) as a float64 numpy array."""
+    return np.array(m, dtype=np.float64)
+
+
+def _xform_samples(prim: Usd.Prim) -> set[float]:
+    """Time samples of the transforms of ``prim`` and every ancestor."""
+    times: set[float] = set()
+    while prim and not prim.IsPseudoRoot():
+        if prim.IsA(UsdGeom.Xformable):
+            times.update(UsdGeom.Xformable(prim).GetTimeSamples())
+        prim = prim.GetParent()
+    return times
+
+
+def _find_face_prim(stage: Usd.Stage, source: str) -> Usd.Prim:
+    """The face mesh (:func:`find_mesh`), or in an over-only layer opened alone (a point cache
+    without usdface schemas) the first prim, default prim's subtree first, with authored points."""
+    try:
+        return find_mesh(stage, what="file")
+    except InputError:
+        pass
+    root = stage.GetDefaultPrim()
+    ranges = ([Usd.PrimRange(root, Usd.PrimAllPrimsPredicate)] if root else []) + [
+        Usd.PrimRange.Stage(stage, Usd.PrimAllPrimsPredicate)]
+    for prims in ranges:
+        for prim in prims:
+            attr = prim.GetAttribute(UsdGeom.Tokens.points)
+            if attr and attr.HasAuthoredValue():
+                return prim
+    raise InputError(f"{source}: no face mesh (no Mesh prim, and no prim with points)")
+
+
+class FaceEvaluator:
+    """The face mesh of a stage, deformed and placed as USD composes it at any time code.
+
+    Parameters
+    ----------
+    stage : Usd.Stage
+        An open stage (a shot, or any deliverable layer opened alone).
+    mesh : str or Sdf.Path, optional
+        The mesh prim; by default the face mesh (:func:`usdface.usd.mesh_layer.find_mesh`: the
+        prim with usdface schemas, else the default prim's first Mesh; in an over-only layer
+        without schemas, the first prim with authored points).
+    source : str, optional
+        Name used in error messages (default: the root layer's identifier).
+
+    Attributes
+    ----------
+    stage, prim : the stage and the mesh prim
+    mesh_path : str, the mesh prim's path
+    n_points : int
+    face_vertex_counts, face_vertex_indices : ndarray (int64) or None (an over-only layer
+        carries no topology)
+    units : str or None, the stage's linear unit (``"cm"``...)
+    rate : float, ``timeCodesPerSecond``; fps : float, ``framesPerSecond``
+    time_codes : ndarray (T,) float64, sorted: every authored time code that can change the
+        result (points, joint animation, blend-shape weights, influences, the mesh's and the
+        skeleton's ancestors' transforms); empty for a still mesh
+    frame_range : (start, end) or None, the stage's authored range, else the first and last
+        of ``time_codes``
+    deformation : tuple of str, what moves the points, in order of application: ``"points"``
+        (time-sampled points), ``"blendShapes"``, ``"skinning"`` (per-point linear or
+        dual-quaternion blend skinning) or ``"rigidSkinning"``; ``()`` for a still mesh
+    skinning_method : str or None (``"classicLinear"``, ``"dualQuaternion"``)
+    joints : list of str, the skeleton's joint order ([] without skinning)
+    blend_shapes : list of str, the mesh's ``skel:blendShapes`` order ([] without blend shapes)
+    animated : bool, whether more than one time code moves the face (in world space)
+    """
+
+    def __init__(self, stage: Usd.Stage, *, mesh: str | Sdf.Path | None = None, source: str | None = None):
+        self.stage = stage
+        self.source = source or stage.GetRootLayer().identifier
+        if mesh is None:
+            prim = _find_face_prim(stage, self.source)
+        else:
+            prim = stage.GetPrimAtPath(Sdf.Path(str(mesh)))
+            if not prim:
+                raise InputError(f"{self.source}: no prim at {mesh}")
+        self.prim = prim
+        self.mesh_path = str(prim.GetPath())
+        self.geom = UsdGeom.Mesh(prim)
+        self._points_query = Usd.AttributeQuery(self.geom.GetPointsAttr())
+        rest = self.geom.GetPointsAttr().Get(Usd.TimeCode.Default())
+        samples = self._points_query.GetTimeSamples()
+        if rest is None and not samples:
+            raise InputError(f"{self.source}: the mesh {self.mesh_path} has no points")
+        self._rest_vt = Vt.Vec3fArray(rest) if rest is not None else None
+        first = rest if rest is not None else self.geom.GetPointsAttr().Get(samples[0])
+        self.n_points = len(first)
+        counts = self.geom.GetFaceVertexCountsAttr().Get()
+        indices = self.geom.GetFaceVertexIndicesAttr().Get()
+        self.face_vertex_counts = np.asarray(counts, dtype=np.int64) if counts else None
+        self.face_vertex_indices = np.asarray(indices, dtype=np.int64) if counts and indices else None
+        self.units = stage_units(stage)
+        self.rate = float(stage.GetTimeCodesPerSecond())
+        self.fps = float(stage.GetFramesPerSecond())
+        self._points_vary = len(samples) > 0
+        self._xf_cache = UsdGeom.XformCache()
+        self._setup_skel()
+        self._setup_times(samples)
+
+    # -- set-up ----------------------------------------------------------------------------------
+
+    @classmethod
+    def open(cls, path: str | os.PathLike, *, mesh: str | None = None, what: str = "file") -> "FaceEvaluator":
+        """Open ``path`` (any USD file) and build its evaluator."""
+        return cls(open_stage(path, what=what), mesh=mesh, source=str(path))
+
+    def _setup_skel(self) -> None:
+        self.skinning_method = None
+        self.joints: list[str] = []
+        self.blend_shapes: list[str] = []
+        self._lbs = self._rigid = self._blend = False
+        self._skel_prim = None
+        prim = self.prim
+        binding = UsdSkel.BindingAPI(prim)
+        has_influences = prim.HasAPI(UsdSkel.BindingAPI) and (
+            binding.GetJointIndicesPrimvar().HasAuthoredValue() or binding.GetBlendShapesAttr().HasAuthoredValue())
+        root = UsdSkel.Root.Find(prim)
+        if not root:
+            if has_influences:
+                log.warning("%s: %s has skin weights or blend shapes but no SkelRoot ancestor; UsdSkel does not "
+                            "deform it (evaluating its authored points)", self.source, self.mesh_path)
+            return
+        cache = UsdSkel.Cache()
+        cache.Populate(root, Usd.TraverseInstanceProxies())
+        skin = cache.GetSkinningQuery(prim)
+        skeleton = binding.GetInheritedSkeleton()
+        skel_query = cache.GetSkelQuery(skeleton) if skeleton else None
+        if not skin or not skel_query:
+            if has_influences:
+                log.warning("%s: %s is under the SkelRoot %s but bound to no valid Skeleton; UsdSkel does not "
+                            "deform it", self.source, self.mesh_path, root.GetPath())
+            return
+        self._skin, self._skel_query = skin, skel_query
+        self._anim_query = skel_query.GetAnimQuery()
+        self._skel_prim = skel_query.GetPrim()
+        if skin.HasJointInfluences() and skel_query.HasBindPose():
+            self._rigid = skin.IsRigidlyDeformed()
+            self._lbs = not self._rigid
+            self.skinning_method = str(skin.GetSkinningMethod())
+            self.joints = [str(j) for j in skel_query.GetJointOrder()]
+            self._joint_mapper = skin.GetJointMapper()
+            if self._joint_mapper is not None and self._joint_mapper.IsIdentity():
+                self._joint_mapper = None
+            self._influences_vary = (skin.GetJointIndicesPrimvar().ValueMightBeTimeVarying()
+                                     or skin.GetJointWeightsPrimvar().ValueMightBeTimeVarying())
+            self._influences = skin.ComputeJointInfluences(Usd.TimeCode.Default())
+            if self._influences is None:
+                raise InputError(f"{self.source}: the joint influences of {self.mesh_path} are invalid "
+                                 "(primvars:skel:jointIndices / jointWeights)")
+            self._n_influences = skin.GetNumInfluencesPerComponent()
+            if not self._rigid and len(self._influences[0]) != self.n_points * self._n_influences:
+                raise InputError(f"{self.source}: {self.mesh_path} has {len(self._influences[0])} joint indices "
+                                 f"for {self.n_points} points x {self._n_influences} influences")
+        if skin.HasBlendShapes() and self._anim_query and len(self._anim_query.GetBlendShapeOrder()):
+            query = UsdSkel.BlendShapeQuery(binding)
+            offsets = query.ComputeSubShapePointOffsets()
+            if query.GetNumBlendShapes() and any(len(o) for o in offsets):
+                self._blend = True
+                self._bs_query = query
+                self._bs_offsets = offsets
+                self._bs_indices = query.ComputeBlendShapePointIndices()
+                self._bs_mapper = skin.GetBlendShapeMapper()
+                self.blend_shapes = [str(b) for b in (skin.GetBlendShapeOrder() or [])]
+
+    def _setup_times(self, point_samples) -> None:
+        times = set(point_samples)
+        times |= _xform_samples(self.prim)
+        if self._lbs or self._rigid:
+            times |= _xform_samples(self._skel_prim)
+            if self._anim_query:
+                times.update(self._anim_query.GetJointTransformTimeSamples())
+            # (SkinningQuery.GetTimeSamples throws when geomBindTransform is not authored)
+            for attr in (self._skin.GetJointIndicesPrimvar().GetAttr(), self._skin.GetJointWeightsPrimvar().GetAttr(),
+                         self._skin.GetGeomBindTransformAttr()):
+                if attr:
+                    times.update(attr.GetTimeSamples())
+        if self._blend:
+            times.update(self._anim_query.GetBlendShapeWeightTimeSamples())
+        self.time_codes = np.array(sorted(times), dtype=np.float64)
+        if self.stage.HasAuthoredTimeCodeRange():
+            self.frame_range = (float(self.stage.GetStartTimeCode()), float(self.stage.GetEndTimeCode()))
+        elif self.time_codes.size:
+            self.frame_range = (float(self.time_codes[0]), float(self.time_codes[-1]))
+        else:
+            self.frame_range = None
+        steps = []
+        if self._points_vary:
+            steps.append("points")
+        if self._blend:
+            steps.append("blendShapes")
+        if self._lbs:
+            steps.append("skinning")
+        if self._rigid:
+            steps.append("rigidSkinning")
+        self.deformation = tuple(steps)
+        self.animated = self.time_codes.size > 1
+
+    @property
+    def has_topology(self) -> bool:
+        return self.face_vertex_counts is not None and self.face_vertex_indices is not None
+
+    @property
+    def skinned(self) -> bool:
+        return self._lbs or self._rigid
+
+    @property
+    def start(self) -> float:
+        """The time code a query without a time uses: the first of ``frame_range`` (0 for a
+        still stage without one)."""
+        return self.frame_range[0] if self.frame_range else 0.0
+
+    def default_times(self) -> np.ndarray:
+        """(F,) float64: ``time_codes``, or ``[start]`` for a still mesh."""
+        return self.time_codes.copy() if self.time_codes.size else np.array([self.start])
+
+    def _timecode(self, time) -> Usd.TimeCode:
+        return Usd.TimeCode(self.start if time is None else float(time))
+
+    # -- transforms ------------------------------------------------------------------------------
+
+    def _world_gf(self, prim: Usd.Prim, tc: Usd.TimeCode) -> Gf.Matrix4d:
+        self._xf_cache.SetTime(tc)
+        return self._xf_cache.GetLocalToWorldTransform(prim)
+
+    def local_to_world(self, time=None) -> np.ndarray:
+        """(4, 4) column-vector transform of the mesh prim's space to world space at ``time``."""
+        return _row(self._world_gf(self.prim, self._timecode(time))).T
+
+    def _to_space(self, tc: Usd.TimeCode, space: str, rigid: Gf.Matrix4d | None = None,
+                  undeformed: bool = False) -> np.ndarray:
+        """Row-vector (4, 4) taking deformed points (skeleton space when skinned, else mesh
+        space) to ``space``; Gf does the 4 x 4 algebra (numpy's LAPACK inverse of one 4 x 4
+        costs a millisecond on a busy machine)."""
+        if self.skinned:
+            m = self._world_gf(self._skel_prim, tc)
+            if rigid is not None:
+                m = rigid * m
+            if undeformed:
+                m = self._skin.GetGeomBindTransform(tc) * m
+        elif space == "mesh":
+            return _IDENTITY  # points are authored in mesh space: exactly, not W * W^-1
+        else:
+            m = self._world_gf(self.prim, tc)
+        if space == "mesh":
+            m = m * self._world_gf(self.prim, tc).GetInverse()
+        return _row(m)
+
+    # -- deformation -----------------------------------------------------------------------------
+
+    def _base_points(self, tc: Usd.TimeCode) -> Vt.Vec3fArray:
+        if self._points_vary or self._rest_vt is None:
+            pts = self._points_query.Get(tc)
+            if pts is None:
+                raise InputError(f"{self.source}: {self.mesh_path} has no points at time {tc.GetValue():g}")
+            return Vt.Vec3fArray(pts)
+        return Vt.Vec3fArray(self._rest_vt)  # a copy: UsdSkel deforms in place
+
+    def blend_shape_weights(self, time=None) -> np.ndarray:
+        """(B,) float32 blend-shape weights at ``time`` in the mesh's ``blend_shapes`` order."""
+        if not self._blend:
+            return np.zeros(0, dtype=np.float32)
+        weights = self._anim_query.ComputeBlendShapeWeights(self._timecode(time))
+        if self._bs_mapper is not None and not self._bs_mapper.IsIdentity():
+            weights = self._bs_mapper.Remap(weights)
+        return np.asarray(weights, dtype=np.float32)
+
+    def skinning_transforms(self, time=None) -> np.ndarray:
+        """(J, 4, 4) column-vector skinning transforms (inverse bind times joint, skeleton space)
+        in the mesh's joint order at ``time``."""
+        if not self.skinned:
+            return np.zeros((0, 4, 4))
+        return np.transpose(np.asarray(self._skin_xforms(self._timecode(time)), dtype=np.float64), (0, 2, 1))
+
+    def _skin_xforms(self, tc: Usd.TimeCode):
+        xforms = self._skel_query.ComputeSkinningTransforms(tc)
+        if xforms is None:
+            raise InputError(f"{self.source}: UsdSkel cannot compute the skinning transforms of "
+                             f"{self._skel_prim.GetPath()} at time {tc.GetValue():g}")
+        if self._joint_mapper is not None:
+            xforms = self._joint_mapper.RemapTransforms(xforms, Vt.Matrix4dArray())
+        return xforms
+
+    def _apply_blend_shapes(self, pts: Vt.Vec3fArray, tc: Usd.TimeCode) -> None:
+        weights = self._anim_query.ComputeBlendShapeWeights(tc)
+        if weights is None:
+            return
+        if self._bs_mapper is not None and not self._bs_mapper.IsIdentity():
+            weights = self._bs_mapper.Remap(weights)
+        sub_weights, shape_idx, sub_idx = self._bs_query.ComputeSubShapeWeights(Vt.FloatArray(weights))
+        if not self._bs_query.ComputeDeformedPoints(sub_weights, shape_idx, sub_idx, self._bs_indices,
+                                                    self._bs_offsets, pts):
+            raise InputError(f"{self.source}: UsdSkel could not apply the blend shapes of {self.mesh_path} at "
+                             f"time {tc.GetValue():g} (point indices or offsets out of range?)")
+
+    def _deformed(self, tc: Usd.TimeCode) -> tuple[Vt.Vec3fArray, Gf.Matrix4d | None]:
+        """Deformed points (skeleton space when skinned, else mesh space) and, for rigid
+        skinning, the row-vector transform UsdSkel gives the whole mesh."""
+        pts = self._base_points(tc)
+        if self._blend:
+            self._apply_blend_shapes(pts, tc)
+        if self._lbs:
+            indices, weights = self._influences
+            if self._influences_vary:
+                indices, weights = self._skin.ComputeJointInfluences(tc)
+            gbind = self._skin.GetGeomBindTransform(tc)
+            if not UsdSkel.SkinPoints(self._skin.GetSkinningMethod(), gbind, self._skin_xforms(tc), indices, weights,
+                                      self._n_influences, pts, False):
+                raise InputError(f"{self.source}: UsdSkel could not skin {self.mesh_path} at time "
+                                 f"{tc.GetValue():g} (joint indices out of range?)")
+            return pts, None
+        if self._rigid:
+            # the query remaps the skeleton's joint order to the mesh's itself
+            return pts, self._skin.ComputeSkinnedTransform(self._skel_query.ComputeSkinningTransforms(tc), tc)
+        return pts, None
+
+    # -- queries ---------------------------------------------------------------------------------
+
+    def points(self, time=None, *, space: str = "world") -> np.ndarray:
+        """(N, 3) float64 points at ``time`` (a time code; default :attr:`start`) in ``space``
+        ("world" or "mesh")."""
+        out = np.empty((1, self.n_points, 3), dtype=np.float64)
+        self._fill([time], _check_space(space), out)
+        return out[0]
+
+    def points_range(self, times=None, *, space: str = "world", out: np.ndarray | None = None,
+                     progress=None) -> np.ndarray:
+        """(F, N, 3) points at each of ``times`` (default: :meth:`default_times`) in ``space``.
+
+        ``out``: an (F, N, 3) float64 or float32 array to fill (default: a new float64 array).
+        Touching fresh memory is a large part of the cost on some machines (1590 frames of 20k
+        points are 763 MB); a playblast should prefer :meth:`iter_points`. ``progress``: an
+        object with ``update(n)`` (a usdface progress bar).
+        """
+        _check_space(space)
+        times = self.resolve_times(times)
+        if out is None:
+            out = np.empty((len(times), self.n_points, 3), dtype=np.float64)
+        elif out.shape != (len(times), self.n_points, 3):
+            raise OptionError(f"out: expected shape {(len(times), self.n_points, 3)}, got {out.shape}")
+        for a in range(0, len(times), _CHUNK_FRAMES):
+            chunk = times[a:a + _CHUNK_FRAMES]
+            self._fill(chunk, space, out[a:a + len(chunk)])
+            if progress is not None:
+                progress.update(len(chunk))
+        return out
+
+    def iter_points(self, times=None, *, space: str = "world", chunk: int = _CHUNK_FRAMES,
+                    dtype=np.float64):
+        """Yield ``(times, points)`` for consecutive chunks of ``times``: ``times`` (f,) float64,
+        ``points`` (f, N, 3) in one buffer reused from chunk to chunk (copy what you keep). The
+        way to walk a whole take without holding it in memory (a playblast)."""
+        _check_space(space)
+        if chunk < 1:
+            raise OptionError(f"chunk {chunk}: expected at least 1 frame")
+        times = self.resolve_times(times)
+        buf = np.empty((min(chunk, max(len(times), 1)), self.n_points, 3), dtype=dtype)
+        for a in range(0, len(times), chunk):
+            part = times[a:a + chunk]
+            view = buf[:len(part)]
+            self._fill(part, space, view)
+            yield part.copy(), view
+
+    def resolve_times(self, times=None) -> np.ndarray:
+        """(F,) float64 time codes: ``times`` as an array, or :meth:`default_times` for None."""
+        if times is None:
+            return self.default_times()
+        times = np.atleast_1d(np.asarray(times, dtype=np.float64))
+        if times.ndim != 1:
+            raise OptionError(f"times: expected a sequence of time codes, got an array of shape {times.shape}")
+        return times
+
+    def _fill(self, times, space: str, out: np.ndarray) -> None:
+        """Evaluate ``times`` (at most a chunk) into ``out`` (len(times), N, 3)."""
+        for i, t in enumerate(times):
+            tc = self._timecode(t)
+            pts, rigid = self._deformed(tc)
+            p = np.asarray(pts)
+            if len(p) != self.n_points:
+                raise InputError(f"{self.source}: {self.mesh_path} has {len(p)} points at time {tc.GetValue():g}, "
+                                 f"{self.n_points} elsewhere")
+            _transform_into(p, self._to_space(tc, space, rigid), out[i])
+
+    def rest_points(self, *, space: str = "mesh", time=None) -> np.ndarray:
+        """(N, 3) float64 undeformed points: the authored ``points`` default value (a skinned
+        mesh's bind pose, a blend-shape mesh's neutral), placed as UsdSkel places an undeformed
+        mesh (through ``geomBindTransform`` and the skeleton when skinned). ``space="world"``
+        uses the transforms at ``time`` (default: :attr:`start`)."""
+        _check_space(space)
+        if self._rest_vt is None:
+            raise InputError(f"{self.source}: {self.mesh_path} has no rest points (no default value of points; "
+                             "open the shot or the layer that holds the mesh)")
+        m = self._to_space(self._timecode(time), space, undeformed=True)
+        return np.asarray(self._rest_vt, dtype=np.float64) @ m[:3, :3] + m[3, :3]
+
+    def describe(self) -> dict:
+        """A JSON-ready summary (for reports and error messages)."""
+        return {"mesh": self.mesh_path, "points": self.n_points, "deformation": list(self.deformation),
+                "skinningMethod": self.skinning_method, "joints": len(self.joints),
+                "blendShapes": len(self.blend_shapes), "timeCodes": int(self.time_codes.size),
+                "frameRange": list(self.frame_range) if self.frame_range else None, "rate": self.rate,
+                "fps": self.fps, "units": self.units, "animated": self.animated}
+
+
+def evaluate_points(path_or_stage, times=None, *, space: str = "world", mesh: str | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """One call: ``(times, points)`` of the face mesh of a file or stage.
+
+    Returns
+    -------
+    times : ndarray (F,) float64, the time codes evaluated (default:
+        :meth:`FaceEvaluator.default_times`, every time code that moves the face)
+    points : ndarray (F, N, 3) float64 in ``space``
+    """
+    if isinstance(path_or_stage, Usd.Stage):
+        ev = FaceEvaluator(path_or_stage, mesh=mesh)
+    else:
+        ev = FaceEvaluator.open(path_or_stage, mesh=mesh)
+    times = ev.resolve_times(times)
+    return times, ev.points_range(times, space=space)
