@@ -210,3 +210,15 @@ def test_a_failed_playblast_leaves_no_report_and_no_media(shots, tmp_path, monke
     with pytest.raises(InputError, match="renderer exploded"):
         report(shots["gaps"], tmp_path / "r.html")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_run_with_blend_shapes_reports_its_curves_and_residual(sample_assets, tmp_path, cli):
+    out = tmp_path / "bs"
+    assert cli("run", "--mesh", sample_assets / "meshes" / "makehuman_hm08_face_cm.obj", "--capture",
+               sample_assets / "capture" / "JawMoCap.ma", "--layout",
+               sample_assets / "layouts" / "makehuman_hm08_face.layout.json", "--shapes",
+               sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz", "--output-kind", "blendshapes",
+               "--trim", 0, 120, "-o", out, "-q") == 0
+    assert cli("report", out, "-o", tmp_path / "r.html", "--no-playblast", "-q") == 0
+    html = (tmp_path / "r.html").read_text()
+    assert "blendshape-curves" in html and "blendshape-residual" in html

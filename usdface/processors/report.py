@@ -11,7 +11,6 @@ import argparse
 import os
 import secrets
 import shutil
-import tempfile
 import time
 from pathlib import Path
 
@@ -40,9 +39,21 @@ def _commit_folder(tmp: Path, final: Path) -> None:
     if final.exists():
         old = final.with_name(f".{final.name}.old-{secrets.token_hex(4)}")
         os.replace(final, old)
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(tmp, 0o777 & ~mask)  # a plain folder's permissions (a temporary one is private)
     os.replace(tmp, final)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _temporary_folder(final: Path) -> Path:
+    """A private folder beside ``final`` named for its owner (tidied if the owner dies)."""
+    from ..fileutil import temporary_path
+
+    tmp = temporary_path(final)
+    tmp.mkdir()
+    return tmp
 
 
 def _finish(page, out: Path, tmp_media: Path | None) -> None:
@@ -101,7 +112,7 @@ def report(outdir, output, *, playblast=True, playblast_size=(640, 360), playbla
         if playblast is True:
             from .playblast import playblast as make_playblast
 
-            tmp_media = Path(tempfile.mkdtemp(prefix=f".{_media_name(out)}.tmp-", dir=out.parent))
+            tmp_media = _temporary_folder(out.parent / _media_name(out))
             movie_name = f"{d.name.replace('/', '_')}.mp4"
             make_playblast(d.shot, tmp_media / movie_name,
                            PlayblastOptions(size=playblast_size, color=playblast_color, workers=workers))
@@ -210,7 +221,7 @@ def batch_report(summary, output=None, *, playblasts=False, workers=None) -> dic
         if playblasts:
             from .playblast import playblast as make_playblast
 
-            tmp_media = Path(tempfile.mkdtemp(prefix=f".{_media_name(out)}.tmp-", dir=out.parent))
+            tmp_media = _temporary_folder(out.parent / _media_name(out))
         for d, reader, anchor in sections:
             movie = None
             if tmp_media is not None:

@@ -10,7 +10,7 @@ A hook is a pair of functions registered with :func:`register`:
 Built in: the **blend-shape solve** (issue 11). Its contract, so the solve only has to write it:
 ``OUTDIR/curves.csv`` with the header ``frame,time,<shape names>`` (one row per frame, weights
 in [0, 1]), and the per-frame marker residual in cm as ``summary.json`` ->
-``steps.<solve|blendshapes>.residualPerFrame`` (a list, one value per frame) or a ``residual``
+``steps.<solve|blendshapes>.residual`` (or ``residualPerFrame``: a list, one value per frame) or a ``residual``
 column of ``curves.csv``. The section plots the curves (shapes that never reach 0.05 start
 hidden) and the residual.
 """
@@ -79,8 +79,9 @@ def _gather_blendshapes(data) -> None:
     cols.pop("time")
     steps = data.summary.get("steps", {})
     for key in ("solve", "blendshapes"):
-        per_frame = (steps.get(key) or {}).get("residualPerFrame")
-        if per_frame is not None:
+        step = steps.get(key) or {}
+        per_frame = step.get("residualPerFrame", step.get("residual"))  # the solve's per-frame marker residual
+        if isinstance(per_frame, list):
             residual = np.asarray(per_frame, dtype=np.float64)
             break
     data.extras["blendshapes"] = {"frames": frames, "curves": cols, "residual": residual,
