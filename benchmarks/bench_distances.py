@@ -11,7 +11,7 @@ All in one process, so the ratios compare like with like on a shared machine:
 - 41 surface-point markers (farthest-point spread, random barycentrics);
 - the baseline: scipy.sparse.csgraph.dijkstra multi-source computing the full, unbounded N x 41
   matrix (from the vertex nearest each marker), and the usdface back-ends: graph (Eq. 7, numba
-  bucket queue), fmm (fast marching, the default), fmm bounded at 3 kernel widths, hybrid (Eq. 8,
+  bucket queue), fmm (fast marching, the accurate one), fmm bounded at 3 kernel widths, hybrid (Eq. 8,
   paper defaults) on graph and on fmm, heat (potpourri3d, auto t_coef); wall time, CPU time (all
   threads) and peak memory of each (VmHWM reset before each, /proc/self/clear_refs);
 - the paper's approach for scale: one A* search per vertex-marker pair, extrapolated;
