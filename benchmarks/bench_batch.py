@@ -49,13 +49,25 @@ def subdivided_face(src: Path, dst: Path, levels: int) -> int:
     return len(v)
 
 
+def lpt_makespan(seconds: list[float], workers: int) -> float:
+    """Finish time of ``seconds`` (one entry per shot) on ``workers`` with longest-first scheduling
+    (the batch runner's order), no overheads: what the shot mix allows at best."""
+    loads = [0.0] * workers
+    for s in sorted(seconds, reverse=True):
+        loads[loads.index(min(loads))] += s
+    return max(loads) if seconds else 0.0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frames", type=int, default=300, help="frames per take (trim)")
     ap.add_argument("--big-subdiv", type=int, default=3, help="subdivision levels of the big face (3: ~125k vertices)")
     ap.add_argument("--out", default="/tmp/usdface-bench-batch")
     args = ap.parse_args()
+    import os
     from usdface.batch import load_manifest, run_batch
+    print(f"load average at start {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs (a shared machine: compare "
+          f"within this run)")
 
     out = Path(args.out)
     shutil.rmtree(out, ignore_errors=True)
@@ -80,7 +92,7 @@ def main() -> None:
                  f'capture = "{sa}/capture/*MoCap.ma"']
     manifest = out / "bench.toml"
     manifest.write_text("\n".join(text) + "\n")
-    results = {}
+    results, shot_seconds = {}, {}
     for label, workers in (("serial", 0), ("workers2", 2)):
         for cache_state in ("cold", "warm"):
             root = out / label
@@ -92,9 +104,18 @@ def main() -> None:
             t = time.perf_counter()
             s = run_batch(m, workers=workers, force=True, quiet=True)
             results[(label, cache_state)] = sec = time.perf_counter() - t
-            dist = sum(r["steps"].get("distances", 0) or 0 for r in s["shots"])
+            steps: dict = {}
+            for r in s["shots"]:
+                for k, v in (r.get("steps") or {}).items():
+                    steps[k] = steps.get(k, 0.0) + (v or 0.0)
+            busy = sum(r["seconds"] or 0.0 for r in s["shots"])
+            shot_seconds[(label, cache_state)] = [r["seconds"] or 0.0 for r in s["shots"]]
             print(f"{label:9s} {cache_state} cache: {sec:6.1f} s wall, {s['counts']['ok']}/12 ok, distances "
-                  f"{s['cache']['steps'].get('distances')}, time in distances {dist:.1f} s")
+                  f"{s['cache']['steps'].get('distances')}; shot time {busy:.1f} s = "
+                  + ", ".join(f"{k} {v:.1f}" for k, v in steps.items()), flush=True)
+            if cache_state == "warm":
+                for line in s["_text"][:-2]:
+                    print("    " + line)
             assert s["counts"]["ok"] == 12, json.dumps(s["shots"], indent=1, default=str)[:3000]
     # byte-identity serial vs parallel on every layer
     same = 0
@@ -103,6 +124,13 @@ def main() -> None:
     total = len(list((out / "serial" / "out").rglob("*.usd?")))
     print(f"speedup --workers 2 vs serial: cold {results[('serial', 'cold')] / results[('workers2', 'cold')]:.2f}x, "
           f"warm {results[('serial', 'warm')] / results[('workers2', 'warm')]:.2f}x")
+    for state in ("cold", "warm"):
+        serial = shot_seconds[("serial", state)]
+        bound = sum(serial) / lpt_makespan(serial, 2)
+        inflation = sum(shot_seconds[("workers2", state)]) / max(sum(serial), 1e-9)
+        print(f"  {state}: whole shots cannot be split, so 2 workers can at best reach {bound:.2f}x on this shot mix "
+              f"(longest-first schedule of the serial shot times); a shot took {inflation:.2f}x its serial time "
+              f"with 2 running (contention for memory, disk or other processes)")
     print(f"cache effect (cold / warm): serial {results[('serial', 'cold')] / results[('serial', 'warm')]:.2f}x, "
           f"--workers 2 {results[('workers2', 'cold')] / results[('workers2', 'warm')]:.2f}x")
     print(f"layers byte-identical serial vs --workers 2: {same}/{total}")

@@ -1,26 +1,26 @@
-"""Distance-matrix benchmark: 41 markers on a face refined to >= 300k vertices.
+"""Distance-matrix benchmark: 41 markers on a real face refined to 0.3-2M vertices.
 
 Run by hand (not in CI):
 
-    python benchmarks/bench_distances.py [--n 13] [--markers 41] [--pairs 200] [--exact-300k 1]
+    python benchmarks/bench_distances.py [--n 17] [--markers 41] [--remesh 30000] [--skip-heat]
 
-What it does, all in one run so the ratios compare like with like:
+All in one process, so the ratios compare like with like on a shared machine:
 
-- builds a large face: the MakeHuman face (2020 vertices, shared/data/meshes) refined 1-to-n^2
-  (planar: the surface and its holes do not change; n = 13 gives 327,988 vertices);
-- places 41 surface-point markers (farthest-point spread over the face, random barycentrics);
-- times usdface: Euclidean (Eq. 6), graph geodesic (Eq. 7), heat geodesic, hybrid (Eq. 8, paper
-  defaults: regions 1 cm around the mouth and eye loops, sigma 2 cm, threshold 0.6) with the
-  bounded search, and the hybrid computed from the full geodesic matrix (the saving);
-- baseline A, the paper's approach: one A* shortest-path search per vertex-marker pair, stopping
-  at the target (numba-compiled, Euclidean heuristic), timed on a sample of pairs and
-  extrapolated to N x 41 pairs;
-- baseline B: scipy.sparse.csgraph.dijkstra multi-source and potpourri3d's heat solver (default
-  t_coef) called directly;
-- accuracy at 300k against exact geodesics: because the refinement is planar, exact (MMP)
-  distances on the original 2020-vertex mesh are the exact distances on the refined surface at
-  the original vertices, for every marker; plus pygeodesic run on the full 300k mesh for a few
-  markers (``--exact-300k``; minutes each).
+- a large face: the MakeHuman face (2020 vertices, shared/data/meshes) refined 1-to-n^2 (planar:
+  the surface and its holes do not change; n = 13: 327,988 vertices, 17: 560,420, 32: 1,983,230);
+- 41 surface-point markers (farthest-point spread, random barycentrics);
+- the baseline: scipy.sparse.csgraph.dijkstra multi-source computing the full, unbounded N x 41
+  matrix (from the vertex nearest each marker), and the usdface back-ends: graph (Eq. 7, numba
+  bucket queue), fmm (fast marching, the accurate one), fmm bounded at 3 kernel widths, hybrid (Eq. 8,
+  paper defaults) on graph and on fmm, heat (potpourri3d, auto t_coef); wall time, CPU time (all
+  threads) and peak memory of each (VmHWM reset before each, /proc/self/clear_refs);
+- the paper's approach for scale: one A* search per vertex-marker pair, extrapolated;
+- accuracy against exact geodesics over the pairs a kernel reaches (d above one mean edge length
+  of the mesh and below 3 kernel widths, the default width 1.1 x the median marker spacing):
+  the refinement is planar, so exact (MMP) distances on the original 2020-vertex mesh are the exact
+  distances on the big mesh at the original vertices, for every marker;
+- an irregular remesh (pymeshlab isotropic remeshing, ~30k vertices): every back-end against exact
+  MMP computed on that mesh itself (``--remesh 0`` skips it; minutes).
 """
 from __future__ import annotations
 
@@ -184,23 +184,68 @@ def rel_stats(a, ref):
             f"entries off by > 5 % of diameter: {100 * (np.abs(a - ref) > 0.05 * diam).mean():.2f} %")
 
 
+def vm_hwm_mb() -> float:
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024.0
+    return peak_mb()
+
+
+def reset_peak() -> float:
+    """Reset the peak-RSS mark (Linux clear_refs 5); returns the current RSS in MB."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+    except OSError:
+        pass
+    for line in open("/proc/self/status"):
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    return 0.0
+
+
+def window_stats(a, ref, lo, hi):
+    """Relative error over the pairs a kernel reaches: lo < exact distance < hi."""
+    m = (ref > lo) & (ref < hi) & np.isfinite(ref)
+    rel = np.abs(a - ref)[m] / ref[m]
+    signed = (a - ref)[m] / ref[m]
+    return (f"mean {100 * rel.mean():6.3f} %  (signed {100 * signed.mean():+6.3f} %)  p99 {100 * np.percentile(rel, 99):6.2f} %"
+            f"  max {100 * rel.max():6.1f} %  over {m.sum()} pairs"), rel.mean()
+
+
+def remesh_face(P, T, target_vertices, seed=0):
+    import pymeshlab
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(P, T))
+    area = 0.5 * np.linalg.norm(np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]), axis=1).sum()
+    edge = float(np.sqrt(4 * area / (np.sqrt(3) * 2 * target_vertices)))
+    ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(edge), iterations=6)
+    m = ms.current_mesh()
+    return np.asarray(m.vertex_matrix(), dtype=np.float64), np.asarray(m.face_matrix(), dtype=np.int64)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--n", type=int, default=13, help="refinement factor (13 -> 328k vertices)")
+    ap.add_argument("--n", type=int, default=17, help="refinement factor (17 -> 560k vertices, 32 -> 2M)")
     ap.add_argument("--markers", type=int, default=41)
-    ap.add_argument("--pairs", type=int, default=200, help="pairs sampled for baseline A")
-    ap.add_argument("--exact-300k", type=int, default=0,
-                    help="markers also checked with pygeodesic on the whole big mesh (~5 min each at 328k)")
+    ap.add_argument("--pairs", type=int, default=200, help="pairs sampled for the A* baseline")
+    ap.add_argument("--repeat", type=int, default=2, help="timed repeats (best kept) of the fast methods")
+    ap.add_argument("--remesh", type=int, default=30000, help="vertices of the irregular remesh (0: skip)")
+    ap.add_argument("--remesh-markers", type=int, default=41)
     ap.add_argument("--skip-heat", action="store_true")
     args = ap.parse_args(argv)
 
     print(f"machine: {machine()}")
     print(f"load average at start: {os.getloadavg()[0]:.2f} (other processes share the CPUs: compare ratios)")
+    from usdface.rbf.stiffness import DEFAULT_WIDTH_FACTOR, median_marker_spacing_from_points
     P, T, coarse_mesh = load_face()
     t0 = time.perf_counter()
     p, t = G.refine_triangles(P, T, args.n)
-    print(f"mesh: MakeHuman face {len(P)} v refined 1-to-{args.n ** 2}: {len(p)} vertices, {len(t)} triangles "
-          f"({time.perf_counter() - t0:.1f} s to build)")
+    e = G.mesh_edges(t)
+    h = float(np.linalg.norm(p[e[:, 0]] - p[e[:, 1]], axis=1).mean())
+    del e
+    print(f"mesh: MakeHuman face {len(P)} v refined 1-to-{args.n ** 2}: {len(p)} vertices, {len(t)} triangles, "
+          f"mean edge {h:.4f} cm ({time.perf_counter() - t0:.1f} s to build)")
     from usdface.mesh.topology import find_hole_regions
     coarse_loops = [r.loop for r in find_hole_regions(coarse_mesh) if r.role in ("mouth", "eye")]
     fine_loops = [lp for lp in G.boundary_loops(t) if any(np.isin(c, lp).all() for c in coarse_loops)]
@@ -210,115 +255,133 @@ def main(argv=None):
     tri, bary = locate_in_refined(p, t, q)
     nearest = np.array([tri[i][np.argmax(bary[i])] for i in range(len(tri))])
     N, S = len(p), len(tri)
-    print(f"markers: {S} surface points; regions: mouth + 2 eye loops ({sum(map(len, fine_loops))} loop vertices)")
+    width = DEFAULT_WIDTH_FACTOR * median_marker_spacing_from_points(q)
+    print(f"markers: {S} surface points, default kernel width {width:.2f} cm; regions: mouth + 2 eye loops")
     print(f"N x S float64 = {N * S * 8 / 1e6:.0f} MB\n")
     results = {}
 
     def timed(name, fn, repeat=1):
-        best = np.inf
-        out = None
+        best, best_cpu, out = np.inf, np.inf, None
+        base = reset_peak()
         for _ in range(repeat):
-            t0 = time.perf_counter()
+            out = None
+            t0, c0 = time.perf_counter(), time.process_time()
             out = fn()
             best = min(best, time.perf_counter() - t0)
+            best_cpu = min(best_cpu, time.process_time() - c0)
         results[name] = best
-        print(f"  {name:<46s} {best:8.3f} s   (peak RSS so far {peak_mb():6.0f} MB)", flush=True)
+        results[name + " cpu"] = best_cpu
+        print(f"  {name:44s} {best:8.2f} s wall {best_cpu:8.2f} s CPU   peak +{vm_hwm_mb() - base:6.0f} MB "
+              f"(RSS high-water {vm_hwm_mb():6.0f} MB)", flush=True)
         return out
 
     # warm the numba kernels on the small mesh (compile / cache load is not the benchmark)
-    GeodesicSolver(P, T).distances(ctri[:2], cbary[:2])
-    print("usdface:")
-    euc = timed("euclidean (Eq. 6)", lambda: euclidean_distances(p, tri, bary), repeat=3)
-    solver = timed("graph: set-up (edges, components, CSR graph)", lambda: GeodesicSolver(p, t))
-    _ = timed("  (edge graph built on first use)", lambda: solver.graph)
+    for b in ("graph", "fmm"):
+        GeodesicSolver(P, T, backend=b).distances(ctri[:2], cbary[:2])
 
-    def fresh(fn):
+    def fresh(solver, fn):
         def run():
             solver._last = None          # no cached result: every repeat searches again
             return fn()
         return run
-    graph = timed("graph geodesic (Eq. 7), N x S + S x S", fresh(lambda: solver.solve(tri, bary)), repeat=3)
-    hyb = timed("hybrid (Eq. 8), paper defaults, bounded",
-                fresh(lambda: hybrid_distances(solver, tri, bary, fine_loops, radius=1.0, sigma=2.0)), repeat=3)
-    hyb_full = timed("hybrid from the full geodesic matrix",
-                     fresh(lambda: hybrid_distances(solver, tri, bary, fine_loops, radius=1.0, sigma=2.0,
-                                                    bounded=False)), repeat=3)
-    assert np.array_equal(hyb.vertex, hyb_full.vertex)
-    w, _ = hybrid_weights(p, fine_loops, radius=1.0, sigma=2.0)
-    rep = hyb.geodesic
-    print(f"    hybrid: {100 * (w > 0.6).mean():.1f} % of vertices have w > 0.6; bounded searches settled "
-          f"{100 * rep.settled_fraction:.1f} % of N x S vertex visits; " +
-          ", ".join(f"{k} {v:.2f} s" for k, v in hyb.seconds.items()))
-    for sig in (1.0, 0.5):
-        h = hybrid_distances(solver, tri, bary, fine_loops, radius=1.0, sigma=sig)
-        hf = hybrid_distances(solver, tri, bary, fine_loops, radius=1.0, sigma=sig, bounded=False)
-        print(f"    (narrower sigma = {sig} cm: {100 * h.geodesic_vertices.mean():.1f} % of vertices w > 0.6, "
-              f"settled {100 * h.geodesic.settled_fraction:.1f} %, geodesic part {h.seconds['geodesic']:.2f} s "
-              f"bounded vs {hf.seconds['geodesic']:.2f} s full)")
+
+    print(f"baseline (numba threads: {numba_threads()}; scipy is single-threaded):")
+    from scipy.sparse.csgraph import dijkstra
+    gsolver = GeodesicSolver(p, t, backend="graph")
+    g = gsolver.graph
+    timed("scipy csgraph.dijkstra multi-source, N x 41", lambda: dijkstra(g, directed=False, indices=nearest),
+          repeat=args.repeat)
+    print("usdface:")
+    euc = timed("euclidean (Eq. 6)", lambda: euclidean_distances(p, tri, bary))
+    graph = timed("graph geodesic (Eq. 7), N x S + S x S", fresh(gsolver, lambda: gsolver.solve(tri, bary)),
+                  repeat=args.repeat)
+    fsolver = GeodesicSolver(p, t, backend="fmm")
+    timed("fmm: tables (once per mesh)", lambda: fsolver.marching)
+    fmm = timed("fmm geodesic, N x S + S x S", fresh(fsolver, lambda: fsolver.solve(tri, bary)),
+                repeat=args.repeat)
+    bound = 3.0 * width
+    fmm_b = timed(f"fmm bounded at 3 widths ({bound:.1f} cm)",
+                  fresh(fsolver, lambda: fsolver.solve(tri, bary, max_distance=bound)), repeat=args.repeat)
+    print(f"    bounded fmm settled {100 * fmm_b.report.settled_fraction:.1f} % of the N x S vertex visits")
+    hyb_g = timed("hybrid (Eq. 8) on graph, paper defaults", fresh(gsolver, lambda: hybrid_distances(
+        gsolver, tri, bary, fine_loops, radius=1.0, sigma=2.0)), repeat=args.repeat)
+    hyb_f = timed("hybrid (Eq. 8) on fmm, paper defaults", fresh(fsolver, lambda: hybrid_distances(
+        fsolver, tri, bary, fine_loops, radius=1.0, sigma=2.0)), repeat=args.repeat)
+    print(f"    hybrid: {100 * hyb_f.geodesic_vertices.mean():.1f} % of vertices have w > 0.6; bounded searches "
+          f"settled {100 * hyb_f.geodesic.settled_fraction:.1f} % (fmm), {100 * hyb_g.geodesic.settled_fraction:.1f} % (graph)")
+    heat = None
     if not args.skip_heat:
-        heat = timed("heat geodesic (auto t_coef), incl. set-up", lambda: GeodesicSolver(p, t, backend="heat").solve(tri, bary))
+        heat = timed("heat geodesic (potpourri3d, auto t_coef), incl. set-up",
+                     lambda: GeodesicSolver(p, t, backend="heat").solve(tri, bary))
         print(f"    heat t_coef used: {heat.report.t_coef}")
 
-    print("baseline B (libraries called directly):")
-    from scipy.sparse.csgraph import dijkstra
-    g = solver.graph
-    timed("scipy csgraph.dijkstra multi-source (nearest v)", lambda: dijkstra(g, directed=False, indices=nearest), repeat=2)
-    aug = G.augmented_graph(g, p, tri, bary)
-    timed("scipy csgraph.dijkstra on the augmented graph", lambda: dijkstra(aug, directed=True, indices=N + np.arange(S)), repeat=2)
-    if not args.skip_heat:
-        import potpourri3d as pp3d
-
-        def pp3d_heat():
-            s = pp3d.MeshHeatMethodDistanceSolver(p, t)
-            return np.stack([s.compute_distance(int(v)) for v in nearest])
-        pp = timed("potpourri3d heat, default t_coef (nearest v)", pp3d_heat)
-
-    print("baseline A (the paper: one A* search per vertex-marker pair):")
+    print("the paper's approach (one A* search per vertex-marker pair):")
     astar = astar_kernel()
     ip, ix, wt = g.indptr.astype(np.int64), g.indices.astype(np.int64), g.data
     astar(ip, ix, wt, p, int(nearest[0]), int(nearest[1]))
     rng = np.random.default_rng(1)
     pairs = [(int(nearest[rng.integers(S)]), int(rng.integers(N))) for _ in range(args.pairs)]
     t0 = time.perf_counter()
-    settled = 0
     for s_, v_ in pairs:
-        d_, k_ = astar(ip, ix, wt, p, s_, v_)
-        settled += k_
+        astar(ip, ix, wt, p, s_, v_)
     per_pair = (time.perf_counter() - t0) / len(pairs)
     total_a = per_pair * N * S
-    results["baseline A"] = total_a
-    print(f"  {len(pairs)} sampled pairs: {1e3 * per_pair:.2f} ms per pair, {settled / len(pairs) / N * 100:.1f} % "
-          f"of the mesh settled per pair; extrapolated to {N} x {S} pairs: {total_a:.0f} s = {total_a / 3600:.1f} h")
+    print(f"  {len(pairs)} sampled pairs: {1e3 * per_pair:.2f} ms per pair; extrapolated to {N} x {S} pairs: "
+          f"{total_a:.0f} s = {total_a / 3600:.1f} h")
 
-    print("\nratios (same run):")
-    gbest = min(results["scipy csgraph.dijkstra multi-source (nearest v)"],
-                results["scipy csgraph.dijkstra on the augmented graph"])
-    print(f"  baseline A / usdface graph            {total_a / results['graph geodesic (Eq. 7), N x S + S x S']:10.0f} x")
-    print(f"  baseline A / usdface hybrid           {total_a / results['hybrid (Eq. 8), paper defaults, bounded']:10.0f} x")
-    print(f"  usdface graph / best scipy dijkstra   {results['graph geodesic (Eq. 7), N x S + S x S'] / gbest:10.2f}")
-    if not args.skip_heat:
-        print(f"  usdface heat / potpourri3d direct     "
-              f"{results['heat geodesic (auto t_coef), incl. set-up'] / results['potpourri3d heat, default t_coef (nearest v)']:10.2f}")
-    print(f"  hybrid bounded / hybrid full          "
-          f"{results['hybrid (Eq. 8), paper defaults, bounded'] / results['hybrid from the full geodesic matrix']:10.2f}")
+    sc = results["scipy csgraph.dijkstra multi-source, N x 41"]
+    scc = results["scipy csgraph.dijkstra multi-source, N x 41 cpu"]
+    print("\nratios to scipy's multi-source Dijkstra (same run; goal: fmm <= 1.5, graph <= 1.0):")
+    for name in ("graph geodesic (Eq. 7), N x S + S x S", "fmm geodesic, N x S + S x S",
+                 f"fmm bounded at 3 widths ({bound:.1f} cm)", "hybrid (Eq. 8) on fmm, paper defaults") + \
+            (() if heat is None else ("heat geodesic (potpourri3d, auto t_coef), incl. set-up",)):
+        print(f"  {name:44s} wall {results[name] / sc:6.2f}   CPU {results[name + ' cpu'] / scc:6.2f}")
+    print(f"  A* per pair / usdface fmm                   {total_a / results['fmm geodesic, N x S + S x S']:8.0f} x")
 
-    print("\naccuracy at this resolution against exact geodesics (at the original 2020 vertices, all markers):")
+    print(f"\naccuracy against exact geodesics (MMP on the 2020-vertex original = exact at its vertices on the "
+          f"refined surface), pairs with {h:.3f} < d < {3 * width:.2f} cm (one mean edge .. 3 kernel widths):")
     exact = GeodesicSolver(P, T, backend="exact").solve(ctri, cbary)
     ref = exact.vertex
-    print(f"  graph (edge paths)            {rel_stats(graph.vertex[:len(P)], ref)}")
-    if not args.skip_heat:
-        print(f"  heat, auto t_coef             {rel_stats(heat.vertex[:len(P)], ref)}")
-        print(f"  potpourri3d heat, default t   {rel_stats(pp[:, :len(P)].T, ref)}  (sources at nearest vertices)")
-    print(f"  euclidean                     {rel_stats(euc[:len(P)], ref)}")
-    if args.exact_300k and not args.skip_heat:
-        print(f"exact MMP on the full {N}-vertex mesh for {args.exact_300k} marker(s):")
-        for k in range(args.exact_300k):
+    rows = [("fmm", fmm.vertex[:len(P)], 3 * width), ("graph (edge paths)", graph.vertex[:len(P)], 3 * width)]
+    if heat is not None:
+        rows.append(("heat, auto t_coef", heat.vertex[:len(P)], 3 * width))
+    rows.append(("euclidean", euc[:len(P)], 3 * width))
+    # the bounded search leaves +inf past its bound: pairs exactly at the bound can fall either side
+    rows.append(("fmm bounded (d < 0.99 bound)", fmm_b.vertex[:len(P)], 0.99 * bound))
+    for name, a, hi in rows:
+        print(f"  {name:28s} {window_stats(np.asarray(a, dtype=np.float64), ref, h, hi)[0]}")
+    print(f"  (all pairs beyond one edge: fmm {window_stats(fmm.vertex[:len(P)], ref, h, np.inf)[0]})")
+    print(f"  sources S x S: fmm {window_stats(fmm.sources, exact.sources, h, 3 * width)[0]}")
+
+    if args.remesh:
+        print(f"\nirregular remesh (pymeshlab isotropic remeshing of the original face, target {args.remesh} vertices):")
+        pr, tr = remesh_face(P, T, args.remesh)
+        er = G.mesh_edges(tr)
+        hr = float(np.linalg.norm(pr[er[:, 0]] - pr[er[:, 1]], axis=1).mean())
+        k = args.remesh_markers
+        rtri, rbary = locate_nearest(pr, tr, q[:k])
+        print(f"  {len(pr)} vertices, {len(tr)} triangles, mean edge {hr:.3f} cm; {k} markers (closest surface points)")
+        t0 = time.perf_counter()
+        ex = GeodesicSolver(pr, tr, backend="exact").solve(rtri, rbary)
+        print(f"  exact MMP: {time.perf_counter() - t0:.0f} s ({ex.report.exact_inf_entries} +inf entries filled)")
+        for b in ("fmm", "graph") + (() if args.skip_heat else ("heat",)):
             t0 = time.perf_counter()
-            ex = GeodesicSolver(p, t, backend="exact").solve(tri[k:k + 1], bary[k:k + 1])
+            r = GeodesicSolver(pr, tr, backend=b).solve(rtri, rbary)
             el = time.perf_counter() - t0
-            print(f"  marker {k}: exact {el:.0f} s ({ex.report.exact_inf_entries} +inf entries filled); heat vs exact over "
-                  f"all {N} vertices: {rel_stats(heat.vertex[:, k:k + 1], ex.vertex)}")
-    print(f"\npeak RSS {peak_mb():.0f} MB; load average at end: {os.getloadavg()[0]:.2f}")
+            print(f"  {b:6s} {el:6.2f} s  {window_stats(r.vertex, ex.vertex, hr, 3 * width)[0]}")
+    print(f"\npeak RSS {vm_hwm_mb():.0f} MB (since the last reset); load average at end: {os.getloadavg()[0]:.2f}")
+
+
+def numba_threads() -> int:
+    import numba
+    return numba.get_num_threads()
+
+
+def locate_nearest(p, t, x):
+    """(triangle vertices, barycentrics) of the closest surface points of a mesh to points x."""
+    from usdface.mesh.closest import closest_points
+    fi, b = closest_points(p, t, x)[:2]
+    return t[fi], b
 
 
 if __name__ == "__main__":

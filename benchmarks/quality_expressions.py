@@ -64,6 +64,12 @@ def main_configs() -> list[T]:
         out += [T(m, "paper", pin="none"), T(m, "paper", width_cm=W2, pin="none")]
         out += [T(m, "interpolate", pin=p) for p in ("border", "none", "upper")]
         out += [T(m, "interpolate", width_cm=W2, pin=p) for p in ("border", "none", "upper")]
+    # the same geodesic and hybrid rows on the fast-marching back-end (accurate surface geodesics;
+    # the edge-graph rows above are the paper's Eq. 7)
+    for m in ("geodesic", "hybrid"):
+        out += [T(m, "paper", pin="none", backend="fmm"), T(m, "paper", width_cm=W2, pin="none", backend="fmm")]
+        out += [T(m, "interpolate", pin=p, backend="fmm") for p in ("border", "none", "upper")]
+        out += [T(m, "interpolate", width_cm=W2, pin=p, backend="fmm") for p in ("border", "none", "upper")]
     return out
 
 
@@ -91,12 +97,13 @@ def section(title: str) -> None:
 
 
 def width_sweep(setup, names, deltas, h_cm) -> list[str]:
-    factors = (0.75, 1.0, 1.25, 1.5, 2.0)
+    factors = (0.6, 0.75, 0.9, 1.0, 1.25, 1.5, 2.0)
     cfgs = []
     for f in factors:
         for m in METHODS:
             cfgs.append(T(m, "interpolate", width_cm=round(f * h_cm, 4), pin="border"))
             cfgs.append(T(m, "paper", width_cm=round(f * h_cm, 4), pin="none"))
+        cfgs.append(T("hybrid", "interpolate", width_cm=round(f * h_cm, 4), pin="border", backend="fmm"))
     rep = evaluate(setup.mesh, setup.region_list, setup.binding, names, deltas, configs=cfgs, setup=setup)
     rows = {r["label"]: r for r in summary_rows(rep)}
     jo = rep.shape("jawOpen")

@@ -35,7 +35,7 @@ __all__ = [
 
 UNITS = tuple(METERS_PER_UNIT)
 METHODS = ("euclidean", "geodesic", "hybrid")
-BACKENDS = ("graph", "heat", "exact")
+BACKENDS = ("graph", "fmm", "heat", "exact")   # usdface.distance.BACKENDS (fmm: accurate surface geodesics)
 KERNELS = ("gaussian", "multiquadric", "inverse_multiquadric", "thin_plate_spline", "cubic")
 #: deliverables `run` can write, in the order they are written
 OUTPUT_KINDS = ("points", "skel", "blendshapes")

@@ -10,7 +10,7 @@ from scipy.sparse.csgraph import dijkstra, shortest_path
 
 from usdface.distance import DistanceWarning, GeodesicSolver, geodesic_distances
 from usdface.distance import graph as G
-from usdface.errors import ComputeError, InputError, ResourceError
+from usdface.errors import ComputeError, InputError, OptionError, ResourceError
 
 
 def load_face(shared_data, name="makehuman_hm08_face_cm.obj"):
@@ -124,8 +124,10 @@ def test_polygon_edges_option(shared_data):
     m = read_mesh(shared_data / "meshes" / "makehuman_hm08_face_cm.obj")
     e = G.polygon_edges(m.face_vertex_counts, m.face_vertex_indices)
     assert len(e) < len(G.mesh_edges(m.triangles()))           # no quad diagonals
-    quads = GeodesicSolver(m.points, m.triangles(), edges=e)
-    tris = GeodesicSolver(m.points, m.triangles())
+    quads = GeodesicSolver(m.points, m.triangles(), edges=e, backend="graph")
+    with pytest.raises(OptionError, match="graph"):
+        GeodesicSolver(m.points, m.triangles(), edges=e, backend="fmm")
+    tris = GeodesicSolver(m.points, m.triangles(), backend="graph")
     src = (np.array([[100, 100, 100]]), np.array([[1.0, 0.0, 0.0]]))
     dq, dt = quads.distances(*src), tris.distances(*src)
     assert np.all(dq >= dt - 1e-12) and (dq > dt + 1e-9).any()
@@ -140,9 +142,10 @@ def two_islands():
     return pts, tris, len(p1)
 
 
-def test_components_error_names_markers():
+@pytest.mark.parametrize("backend", ["graph", "fmm"])
+def test_components_error_names_markers(backend):
     pts, tris, n1 = two_islands()
-    solver = GeodesicSolver(pts, tris)
+    solver = GeodesicSolver(pts, tris, backend=backend)
     assert solver.n_components == 2
     tri = np.array([[0, 0, 0], [7, 7, 7], [n1 + 1, n1 + 1, n1 + 1]])
     bary = np.tile([1.0, 0.0, 0.0], (3, 1))
@@ -153,16 +156,17 @@ def test_components_error_names_markers():
     assert "component 1 (16 vertices): LeftEar" in msg and "Chin, Mouth_Up" in msg and "euclidean" in msg
 
 
-def test_components_euclidean_and_inf():
+@pytest.mark.parametrize("backend", ["graph", "fmm"])
+def test_components_euclidean_and_inf(backend):
     pts, tris, n1 = two_islands()
     tri = np.array([[0, 0, 0], [n1 + 1, n1 + 1, n1 + 1]])
     bary = np.tile([1.0, 0.0, 0.0], (2, 1))
-    raw = GeodesicSolver(pts, tris, components="inf")
+    raw = GeodesicSolver(pts, tris, components="inf", backend=backend)
     with pytest.warns(DistanceWarning):
         r = raw.solve(tri, bary)
     assert np.isinf(r.vertex[n1:, 0]).all() and np.isinf(r.vertex[:n1, 1]).all()
     assert np.isinf(r.sources[0, 1]) and r.report.unreachable_pairs == len(pts)
-    fb = GeodesicSolver(pts, tris, components="euclidean")
+    fb = GeodesicSolver(pts, tris, components="euclidean", backend=backend)
     with pytest.warns(DistanceWarning, match="Euclidean"):
         r2 = fb.solve(tri, bary)
     assert np.isfinite(r2.vertex).all()
@@ -172,27 +176,33 @@ def test_components_euclidean_and_inf():
     assert r2.report.euclidean_fallback_pairs == len(pts) + 2
 
 
-def test_vertices_on_marker_free_component_are_reported():
+@pytest.mark.parametrize("backend", ["graph", "fmm"])
+def test_vertices_on_marker_free_component_are_reported(backend):
     pts, tris, n1 = two_islands()
     tri, bary = np.array([[0, 0, 0]]), np.array([[1.0, 0.0, 0.0]])
     with pytest.warns(DistanceWarning, match="16 vertices"):
-        r = GeodesicSolver(pts, tris).solve(tri, bary)
+        r = GeodesicSolver(pts, tris, backend=backend).solve(tri, bary)
     assert r.report.unreachable_vertices == 16 and np.isinf(r.vertex[n1:]).all()
 
 
-def test_memory_limit_raises():
+@pytest.mark.parametrize("backend", ["graph", "fmm"])
+def test_memory_limit_raises(backend):
     pts, tris = grid()
     tri, bary = random_sources(tris, 5)
-    solver = GeodesicSolver(pts, tris, memory_limit=100)
-    with pytest.raises(ResourceError, match=r"63 vertices x 5 sources .* needs about 2.5 KB"):
+    solver = GeodesicSolver(pts, tris, memory_limit=100, backend=backend)
+    need, detail = solver.memory_estimate(5)
+    assert need > 63 * 5 * 8 and "matrix 2.5 KB" in detail
+    with pytest.raises(ResourceError, match=r"63 vertices x 5 sources .* needs about .*matrix 2.5 KB.* but only "
+                                            r"100 B is allowed"):
         solver.distances(tri, bary)
 
 
-def test_float32_output(shared_data):
+@pytest.mark.parametrize("backend", ["graph", "fmm"])
+def test_float32_output(shared_data, backend):
     pts, tris = load_face(shared_data)
     tri, bary = random_sources(tris, 4)
-    d64 = GeodesicSolver(pts, tris).distances(tri, bary)
-    d32 = GeodesicSolver(pts, tris, dtype=np.float32).distances(tri, bary)
+    d64 = GeodesicSolver(pts, tris, backend=backend).distances(tri, bary)
+    d32 = GeodesicSolver(pts, tris, dtype=np.float32, backend=backend).distances(tri, bary)
     assert d32.dtype == np.float32
     np.testing.assert_allclose(d32, d64, rtol=1e-6)
 

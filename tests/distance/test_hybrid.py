@@ -42,11 +42,12 @@ def test_weights(face):
     assert ins.all() and (ws == 1.0).all()
 
 
-def test_hybrid_blend_matches_definition(face):
+@pytest.mark.parametrize("backend", ["graph", "fmm"])
+def test_hybrid_blend_matches_definition(face, backend):
     pts, tris, loops, tri, bary = face
-    solver = GeodesicSolver(pts, tris)
+    solver = GeodesicSolver(pts, tris, backend=backend)
     r = hybrid_distances(solver, tri, bary, loops, radius=1.0, sigma=2.0)
-    full = GeodesicSolver(pts, tris).solve(tri, bary)
+    full = GeodesicSolver(pts, tris, backend=backend).solve(tri, bary)
     euc = euclidean_distances(pts, tri, bary)
     w = r.weights[:, None]
     ref = np.where(w > 0.6, w * full.vertex + (1 - w) * euc, euc)
@@ -63,10 +64,12 @@ def test_hybrid_blend_matches_definition(face):
     np.testing.assert_array_equal(np.diag(r.sources), 0.0)
 
 
-def test_bounded_equals_unbounded_and_saves_work(face):
+@pytest.mark.parametrize("backend", ["graph", "fmm"])
+def test_bounded_equals_unbounded_and_saves_work(face, backend):
     pts, tris, loops, tri, bary = face
-    b = hybrid_distances(GeodesicSolver(pts, tris), tri, bary, loops, radius=1.0, sigma=2.0)
-    u = hybrid_distances(GeodesicSolver(pts, tris), tri, bary, loops, radius=1.0, sigma=2.0, bounded=False)
+    b = hybrid_distances(GeodesicSolver(pts, tris, backend=backend), tri, bary, loops, radius=1.0, sigma=2.0)
+    u = hybrid_distances(GeodesicSolver(pts, tris, backend=backend), tri, bary, loops, radius=1.0, sigma=2.0,
+                         bounded=False)
     np.testing.assert_array_equal(b.vertex, u.vertex)
     np.testing.assert_array_equal(b.sources, u.sources)
     assert u.geodesic.settled_fraction == 1.0
@@ -104,3 +107,13 @@ def test_bad_options(face):
         hybrid_distances(s, tri, bary, [np.array([10**7])], radius=1.0, sigma=2.0)
     with pytest.raises(InputError):
         hybrid_distances(s, tri, bary, [], radius=1.0, sigma=2.0)
+
+
+def test_refuses_before_any_work_when_memory_is_short(face):
+    from usdface.errors import ResourceError
+    pts, tris, loops, tri, bary = face
+    solver = GeodesicSolver(pts, tris, backend="fmm", memory_limit=1 << 20)
+    with pytest.raises(ResourceError, match=r"hybrid \(fmm\) distances of 2020 vertices x 41 sources .* needs about "
+                                            r".*Euclidean matrix \+ matrix 662.6 KB.* but only 1.0 MB is allowed"):
+        hybrid_distances(solver, tri, bary, loops, radius=1.0, sigma=2.0)
+    assert solver._marching is None          # refused before the search tables were built

@@ -295,6 +295,34 @@ def test_streaming_chunks_equal_one_shot(face):
     assert transfer_motion(face.D_vc, face.D_cc, D, n_markers=face.M).shape == full.shape
 
 
+def test_offset_and_extents_inside_the_product(face):
+    """offset= adds the rest points inside the GEMM and extents= gives each frame's bounding box:
+    the same as adding and reducing afterwards (float32 rounding), in float64 too."""
+    D = _with_gaps(_motion(19, face.M))
+    rbf = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M)
+    rest = np.asarray(face.V, dtype=np.float64) + np.array([3.0, -80.0, 12.0])   # far from the origin
+    for dtype, rtol in ((np.float32, 1e-6), (np.float64, 1e-12)):
+        ref = rbf.apply(D, dtype=np.float64) + rest[None]
+        got, boxes = [], []
+        for frames, pts, box in rbf.iter_chunks(D, chunk_frames=5, offset=rest, extents=True, dtype=dtype):
+            assert pts.dtype == dtype and box.dtype == dtype and box.shape == (pts.shape[0], 2, 3)
+            got.append(pts)
+            boxes.append(box)
+        got, boxes = np.concatenate(got), np.concatenate(boxes)
+        np.testing.assert_allclose(got, ref, rtol=0, atol=rtol * np.abs(ref).max())
+        np.testing.assert_array_equal(boxes[:, 0], got.min(axis=1))    # the box of what was yielded
+        np.testing.assert_array_equal(boxes[:, 1], got.max(axis=1))
+    with pytest.raises(InputError, match="offset"):
+        next(iter(rbf.iter_chunks(D, offset=rest[:-1])))
+    # a ring of 3 buffers: the same values, three distinct buffers reused in turn
+    ring = [(c.copy(), c.__array_interface__["data"][0])
+            for _, c in rbf.iter_chunks(D, chunk_frames=5, offset=rest, buffers=3, dtype=np.float64)]
+    np.testing.assert_array_equal(np.concatenate([c for c, _ in ring]), got)
+    assert [p for _, p in ring] == [ring[i % 3][1] for i in range(len(ring))] and len({p for _, p in ring}) == 3
+    with pytest.raises(OptionError, match="buffers"):
+        rbf.iter_chunks(D, buffers=0)
+
+
 def test_polynomial_needs_four_non_coplanar_valid_centres():
     V = _sphere_patch(50)
     C = V[:5]

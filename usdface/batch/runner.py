@@ -53,8 +53,11 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
             from ..options import RunOptions
             from ..processors.run import run
 
-            summary = run(shot.mesh, capture, shot.output, RunOptions.from_mapping(shot.options), cache=cache)
-            rec["steps"] = {k: v.get("seconds") for k, v in summary["steps"].items()}
+            with step_clock() as clock:
+                summary = run(shot.mesh, capture, shot.output, RunOptions.from_mapping(shot.options), cache=cache)
+            rec["steps"] = {k: clock.get(k, v.get("seconds")) for k, v in summary["steps"].items()}
+            rec["steps"]["other"] = round(max(0.0, time.perf_counter() - started - sum(
+                x for x in rec["steps"].values() if isinstance(x, (int, float)))), 3)
             rec["frames"] = summary["frames"]
             rec["vertices"] = summary["vertices"]
             rec["cache"] = {k: v["cache"]["status"] for k, v in summary["steps"].items() if "cache" in v}
@@ -80,6 +83,61 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
             rec["traceback"] = traceback.format_exc(limit=8)
     rec["seconds"] = round(time.perf_counter() - started, 3)
     return rec
+
+
+#: the processors `run` calls, by step name: (module, function)
+_STEP_FUNCTIONS = {"import-mesh": ("import_mesh", "import_mesh"), "import-capture": ("import_capture", "import_capture"),
+                   "bind": ("bind", "bind"), "distances": ("distances", "distances"),
+                   "transfer": ("transfer", "transfer"), "skel": ("skel", "skel"), "track": ("track", "track"),
+                   "lift": ("lift", "lift")}
+_CORE_STEPS = ("import-mesh", "import-capture", "bind", "distances", "transfer")
+
+
+class step_clock:
+    """Wall seconds of each processor `run` calls during the ``with`` block: ``{step: seconds}``.
+
+    Not every processor reports its own time in its summary, so the processor functions are
+    wrapped for the duration of one shot (run looks them up when it runs; a worker runs one shot at
+    a time) and restored after. Steps called twice add up.
+    """
+
+    def __enter__(self) -> dict:
+        import importlib
+
+        self.times: dict = {}
+        self._saved = []
+        for step, (mod_name, fn_name) in _STEP_FUNCTIONS.items():
+            name = f"usdface.processors.{mod_name}"
+            if step not in _CORE_STEPS and name not in sys.modules:
+                continue        # video and skeleton processors import cv2 and more: only when used
+            try:
+                mod = importlib.import_module(name)
+            except ImportError:  # pragma: no cover - an optional processor
+                continue
+            fn = getattr(mod, fn_name, None)
+            if fn is None or getattr(fn, "_usdface_step_clock", False):
+                continue
+            self._saved.append((mod, fn_name, fn))
+            setattr(mod, fn_name, self._timed(step, fn))
+        return self.times
+
+    def _timed(self, step, fn):
+        times = self.times
+
+        def timed(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                times[step] = round(times.get(step, 0.0) + time.perf_counter() - t0, 3)
+        timed._usdface_step_clock = True
+        timed.__wrapped__ = fn
+        return timed
+
+    def __exit__(self, *exc):
+        for mod, name, fn in self._saved:
+            setattr(mod, name, fn)
+        return False
 
 
 class single_threaded:
@@ -304,9 +362,11 @@ def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -
         if info["workers"] == 0:
             status_out.note("dask: the scheduler has no workers yet; shots wait until one connects")
         futures = {}
-        for shot in todo:
+        # longest first (LPT): a big character's takes submitted last would run one after the other
+        # at the end while the other workers sit idle; records stay in manifest order
+        for rank, shot in enumerate(sorted(todo, key=shot_cost, reverse=True)):
             fut = client.submit(execute_shot, shot, cache_root, key=f"usdface-shot-{shot.name}-{id(shot)}",
-                                pure=False, retries=0)
+                                pure=False, retries=0, priority=len(todo) - rank)
             futures[fut] = shot
             status_out.start(shot)
         for fut in as_completed(list(futures), loop=client.loop):
@@ -323,6 +383,24 @@ def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def shot_cost(shot: Shot) -> float:
+    """A relative estimate of a shot's run time, to hand out the longest shots first.
+
+    Writing the time-sampled points dominates a shot: its cost grows with vertices x frames. The
+    mesh file's size stands for the vertex count and the trimmed frame count (or the capture
+    file's size) for the frames; only the order matters.
+    """
+    def size(path) -> float:
+        try:
+            return float(os.path.getsize(path))
+        except (OSError, TypeError):
+            return 1.0
+
+    trim = shot.options.get("trim")
+    frames = float(trim[1] - trim[0]) if isinstance(trim, (list, tuple)) and len(trim) == 2 else size(shot.capture)
+    return size(shot.mesh) * max(frames, 1.0)
 
 
 def probe_scheduler(address: str, *, timeout: float = PROBE_TIMEOUT) -> dict:
@@ -427,15 +505,16 @@ class _StatusPrinter:
 
 
 def summary_table(summary: dict) -> list[str]:
-    """The batch summary as terminal lines: one row per shot, then totals."""
-    rows = [("shot", "status", "seconds", "capture", "distances", "error")]
+    """The batch summary as terminal lines: one row per shot (with seconds per step), then totals."""
+    rows = [("shot", "status", "seconds", "capture", "distances", "steps (s)", "error")]
     for r in summary["shots"]:
         c = r.get("cache", {})
         err = (r.get("error") or r.get("reason") or "").splitlines()
         rows.append((r["name"], r["status"], f"{r['seconds']:.1f}" if r.get("seconds") is not None else "-",
-                     c.get("import-capture", "-"), c.get("distances", "-"), (err[0] if err else "")[:100]))
-    widths = [max(len(row[i]) for row in rows) for i in range(5)]
-    lines = ["  ".join(v.ljust(w) for v, w in zip(row[:5], widths)) + "  " + row[5] for row in rows]
+                     c.get("import-capture", "-"), c.get("distances", "-"), step_times(r.get("steps")),
+                     (err[0] if err else "")[:100]))
+    widths = [max(len(row[i]) for row in rows) for i in range(6)]
+    lines = ["  ".join(v.ljust(w) for v, w in zip(row[:6], widths)) + "  " + row[6] for row in rows]
     lines.insert(1, "  ".join("-" * w for w in widths) + "  -----")
     n = summary["counts"]
     cc = summary["cache"]["steps"]
@@ -446,6 +525,13 @@ def summary_table(summary: dict) -> list[str]:
                  + (f"; cache {cache_txt}" if cache_txt else ""))
     lines.append(f"summary: {summary['summaryFile']}")
     return lines
+
+
+def step_times(steps) -> str:
+    """``{"import-mesh": 0.41, "transfer": 5.2}`` -> ``"import-mesh 0.4, transfer 5.2"`` ("-" if none)."""
+    if not steps:
+        return "-"
+    return ", ".join(f"{k} {v:.1f}" for k, v in steps.items() if isinstance(v, (int, float)))
 
 
 def _write_json(path: Path, data: dict) -> None:

@@ -19,6 +19,7 @@ from ..resources import available_memory  # noqa: F401  (re-exported)
 
 __all__ = [
     "DistanceWarning",
+    "fmt_bytes",
     "available_memory",
     "check_matrix_memory",
     "euclidean_at_sources",
@@ -42,12 +43,18 @@ def warn(message: str) -> None:
 # memory
 # ----------------------------------------------------------------------------------------------
 
+def fmt_bytes(n: float) -> str:
+    """Bytes as a short human-readable string (``"1.2 GB"``, decimal units)."""
+    return _fmt_bytes(n)
+
+
 def _fmt_bytes(n: float) -> str:
     return format_bytes(n).replace("kB", "KB")
 
 
 def check_matrix_memory(n_rows: int, n_cols: int, dtype=np.float64, *, what: str = "distance matrix",
-                        copies: float = 1.0, memory_limit: int | None = None) -> int:
+                        copies: float = 1.0, memory_limit: int | None = None, extra_bytes: int = 0,
+                        detail: str = "") -> int:
     """Raise ResourceError when an ``n_rows x n_cols`` matrix would not fit in memory.
 
     Parameters
@@ -63,6 +70,10 @@ def check_matrix_memory(n_rows: int, n_cols: int, dtype=np.float64, *, what: str
     memory_limit : int, optional
         Bytes allowed; default: the memory available now (:func:`available_memory`). Pass a
         small value to test the error path.
+    extra_bytes : int
+        Memory the computation needs besides the matrices (search tables, scratch).
+    detail : str
+        What the estimate is made of, for the message (e.g. ``"matrix 1.2 GB + tables 0.3 GB"``).
 
     Returns
     -------
@@ -70,7 +81,7 @@ def check_matrix_memory(n_rows: int, n_cols: int, dtype=np.float64, *, what: str
         The estimate, in bytes.
     """
     itemsize = np.dtype(dtype).itemsize
-    estimate = int(np.ceil(float(n_rows) * float(n_cols) * itemsize * copies))
+    estimate = int(np.ceil(float(n_rows) * float(n_cols) * itemsize * copies)) + int(extra_bytes)
     limit = available_memory() if memory_limit is None else int(memory_limit)
     if limit is not None and estimate > limit:
         hints = ["fewer markers (sources)"]
@@ -80,7 +91,7 @@ def check_matrix_memory(n_rows: int, n_cols: int, dtype=np.float64, *, what: str
         hints.append("a coarser mesh")
         raise ResourceError(
             f"{what} of {n_rows} vertices x {n_cols} sources ({np.dtype(dtype).name}) needs about "
-            f"{_fmt_bytes(estimate)} but only {_fmt_bytes(limit)} "
+            f"{_fmt_bytes(estimate)}{f' ({detail})' if detail else ''} but only {_fmt_bytes(limit)} "
             f"{'is available' if memory_limit is None else 'is allowed (memory_limit)'}; "
             f"use {', or '.join(hints)}"
         )

@@ -22,6 +22,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from ..errors import InputError
+from ..numba_cache import CACHE, notice_compiling
 
 try:  # numba is optional: the scipy path gives the same distances
     import numba as _nb
@@ -258,7 +259,7 @@ def augmented_graph(graph, points, source_tri_vertices, source_barycentrics) -> 
 
 if HAVE_NUMBA:
 
-    @_nb.njit(cache=True, nogil=True)
+    @_nb.njit(cache=CACHE, nogil=True)
     def _sssp_one(indptr, indices, weights, st_v, st_d, sink_ptr, sink_src, sink_w, direct_to, direct_d,
                   needed, n_needed, limit, delta, n_slots, dist, done, sink_dist):
         """One search; returns the number of vertices settled. Bucket queue if delta > 0 else heap."""
@@ -418,7 +419,7 @@ if HAVE_NUMBA:
                         e_node[i] = u
         return settled
 
-    @_nb.njit(cache=True, parallel=True)
+    @_nb.njit(cache=CACHE, parallel=True)
     def _sssp_many(indptr, indices, weights, start_ptr, start_v, start_d, sink_ptr, sink_src, sink_w,
                    direct_ptr, direct_to, direct_d, needed, n_needed, limit, delta, n_slots,
                    out_v, out_s, settled):
@@ -535,6 +536,7 @@ def multi_source_shortest_paths(graph, points, source_tri_vertices, source_baryc
     settled = np.zeros(s, dtype=np.int64)
     indices = g.indices.astype(np.int32, copy=False)
     indptr = g.indptr.astype(np.int64, copy=False)
+    notice_compiling("the geodesic search kernels", _sssp_many)
     old_chunk = _nb.get_parallel_chunksize()
     _nb.set_parallel_chunksize(1)   # hand sources out one at a time: balanced when CPUs are shared
     try:

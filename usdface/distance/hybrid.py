@@ -27,7 +27,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError, OptionError
-from .euclidean import pairwise_euclidean, source_points, validate_sources
+from .euclidean import check_matrix_memory, pairwise_euclidean, source_points, validate_sources
 from .geodesic import DistanceReport, GeodesicSolver
 
 __all__ = ["HybridResult", "hybrid_distances", "hybrid_weights", "region_mask"]
@@ -198,6 +198,11 @@ def hybrid_distances(solver: GeodesicSolver, source_tri_vertices, source_barycen
     tri, bary, names = validate_sources(pts.shape[0], source_tri_vertices, source_barycentrics, names=names)
     if not 0.0 <= threshold < 1.0:
         raise OptionError(f"hybrid threshold must be in [0, 1); got {threshold!r}")
+    # before any work: the geodesic computation's estimate plus the Euclidean matrix blended into
+    need, detail = solver.memory_estimate(tri.shape[0])
+    check_matrix_memory(pts.shape[0], tri.shape[0], solver.dtype, what=f"hybrid ({solver.backend}) distances",
+                        copies=1.0, extra_bytes=need, detail=f"Euclidean matrix + {detail}",
+                        memory_limit=solver.memory_limit)
     q = source_points(pts, tri, bary)
     w, _, ws, _ = _weights(pts, region_vertices, radius, sigma, q)
     geo_v = w > threshold

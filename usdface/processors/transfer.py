@@ -17,6 +17,11 @@ from ..usd.layers import check_output_path, open_stage, provenance
 log = logging.getLogger("usdface")
 
 DEFAULT_CHUNK_FRAMES = 64
+#: largest chunk of float32 points (bytes): 64 frames up to 175k vertices, fewer above
+CHUNK_BYTES = 128 << 20
+#: output buffers cycled by the transfer: the chunk being written, the one computed ahead
+#: (write_animation_layer's prefetch) and the next (fresh arrays per chunk cost their page faults)
+PREFETCH_BUFFERS = 3
 
 
 def parse_stiffness(value):
@@ -192,10 +197,16 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
                                                            "binding": binding_path, "analysis": analysis_path})
     bar = progress(total=capture.n_frames, desc="transfer", unit="frame")
     try:
-        write_animation_layer(out, solver.iter_chunks(disp, chunk_frames=chunk_frames), mesh_path=mesh_path,
-                              rest_points=mesh.points, start=capture.start_frame, rate=capture.rate,
-                              n_frames=capture.n_frames, units=mesh.units, transfer=settings, prov=prov, progress=bar,
-                              head_motion=motion)
+        # the rest points and the extents come out of the RBF's matrix product (the producer thread):
+        # the writer thread only writes. One BLAS thread: the producer runs beside the writer, and
+        # OpenBLAS's spinning second thread took the writer's core (2.4x the CPU, 2x the wall time
+        # of the product on 2 cores). Big meshes: fewer frames per chunk (CHUNK_BYTES per buffer)
+        frames_per_chunk = max(1, min(int(chunk_frames), CHUNK_BYTES // (12 * mesh.n_points)))
+        chunks = solver.iter_chunks(disp, chunk_frames=frames_per_chunk, offset=mesh.points, extents=True,
+                                    blas_threads=1, buffers=PREFETCH_BUFFERS)
+        write_animation_layer(out, chunks, mesh_path=mesh_path, rest_points=None, start=capture.start_frame,
+                              rate=capture.rate, n_frames=capture.n_frames, units=mesh.units, transfer=settings,
+                              prov=prov, progress=bar, head_motion=motion)
     finally:
         bar.close()
     seconds = time.perf_counter() - t0

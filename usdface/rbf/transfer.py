@@ -620,27 +620,56 @@ class RBFTransfer:
         sub = int(min(frames, max(1, _GEMM_TEMP_BYTES // (3 * self.n_vertices * np.dtype(dtype).itemsize))))
         return np.empty((3 * sub, self.n_vertices), dtype=dtype)
 
-    def _evaluate(self, eff: np.ndarray, out: np.ndarray, tmp: np.ndarray | None = None) -> None:
+    def _evaluate(self, eff: np.ndarray, out: np.ndarray, tmp: np.ndarray | None = None, *,
+                  rhs: np.ndarray | None = None, extents: np.ndarray | None = None) -> None:
         """out[k] = B @ eff[k] for every frame k of a chunk (out: (f, N, 3), C-contiguous).
 
         One GEMM per block of frames, ``(3 f', M) @ B^T (M, N) -> (3 f', N)`` (rows ordered frame,
         component), then three strided copies interleave x, y, z into the (f', N, 3) output. This
         orientation keeps the GEMM efficient (B is streamed once per block of frames) and the
         interleaving copy cheap; a per-frame product would re-read B every frame.
+
+        ``rhs`` (M + 3, N), from :meth:`_offset_rhs`, adds a per-vertex offset inside the same GEMM
+        (the extra rows of the left factor are the unit vectors of x, y, z); ``extents`` (f, 2, 3)
+        receives each frame's bounding box, reduced over the contiguous rows of the GEMM result
+        (much cheaper than over the interleaved output).
         """
         f, M = eff.shape[:2]
         N = self.n_vertices
-        B = self._B32 if out.dtype == np.float32 else self._B64
-        lhs = np.ascontiguousarray(eff.transpose(0, 2, 1).reshape(3 * f, M), dtype=out.dtype)
+        if rhs is None:
+            B = self._B32 if out.dtype == np.float32 else self._B64
+            rhs = B.T
+            lhs = np.ascontiguousarray(eff.transpose(0, 2, 1).reshape(3 * f, M), dtype=out.dtype)
+        else:
+            lhs = np.zeros((f, 3, M + 3), dtype=out.dtype)
+            lhs[:, :, :M] = eff.transpose(0, 2, 1)
+            lhs[:, np.arange(3), M + np.arange(3)] = 1.0
+            lhs = lhs.reshape(3 * f, M + 3)
         if tmp is None:
             tmp = self._gemm_buffer(f, out.dtype)
         sub = tmp.shape[0] // 3
         for a in range(0, f, sub):
             b = min(f, a + sub)
-            t = np.matmul(lhs[3 * a : 3 * b], B.T, out=tmp[: 3 * (b - a)]).reshape(b - a, 3, N)
+            t = np.matmul(lhs[3 * a : 3 * b], rhs, out=tmp[: 3 * (b - a)]).reshape(b - a, 3, N)
+            if extents is not None:
+                t.min(axis=2, out=extents[a:b, 0])
+                t.max(axis=2, out=extents[a:b, 1])
             dst = out[a:b]
             for c in range(3):
                 dst[:, :, c] = t[:, c, :]
+
+    def _offset_rhs(self, offset, dtype) -> np.ndarray:
+        """(M + 3, N) right factor ``[B^T; offset^T]`` of the GEMM that adds ``offset`` (N, 3)."""
+        off = _as_float_array("offset", offset)
+        if off.shape != (self.n_vertices, 3):
+            raise _shape_error("offset", f"(N, 3) = ({self.n_vertices}, 3)", offset)
+        if not np.isfinite(off).all():
+            raise InputError(f"offset: {int((~np.isfinite(off)).any(axis=1).sum())} point(s) are NaN or infinite")
+        B = self._B32 if np.dtype(dtype) == np.float32 else self._B64
+        rhs = np.empty((self.n_markers + 3, self.n_vertices), dtype=dtype)
+        rhs[: self.n_markers] = B.T
+        rhs[self.n_markers :] = off.T
+        return rhs
 
     def iter_chunks(
         self,
@@ -650,7 +679,10 @@ class RBFTransfer:
         dtype=np.float32,
         blas_threads: int | None = None,
         reuse_buffer: bool = False,
-    ) -> Iterator[tuple[slice, np.ndarray]]:
+        offset=None,
+        extents: bool = False,
+        buffers: int | None = None,
+    ) -> Iterator[tuple]:
         """Stream vertex displacements in chunks of frames.
 
         Validity is scanned and every validity pattern is computed before the first chunk, so bad
@@ -674,14 +706,28 @@ class RBFTransfer:
             fresh chunk (~10% of the time) and holds one chunk instead of up to two, but the
             consumer must be done with a chunk (e.g. copied it into a Vec3fArray) before asking for
             the next one.
+        offset : array_like, shape (N, 3), optional
+            Added to every frame inside the same matrix product (e.g. the rest points, so the chunks
+            are vertex positions): no extra pass over the output.
+        extents : bool
+            Also yield each frame's bounding box (min and max over the vertices of the yielded
+            points), reduced from the matrix product's contiguous rows.
+        buffers : int, optional
+            Cycle through this many output buffers instead of a fresh array per chunk (no page
+            faults after the first round): a chunk stays valid until ``buffers - 1`` more chunks
+            have been produced (3 for a consumer one chunk behind a producer one chunk ahead, as
+            :func:`usdface.usd.analysis_layer.write_animation_layer`'s prefetch). ``reuse_buffer``
+            is ``buffers=1``.
 
         Yields
         ------
         frames : slice
             The frames of this chunk (indices into ``displacements``).
         points : ndarray, shape (f, N, 3), ``dtype``
-            Vertex displacements (mesh units), C-contiguous (each ``points[k]`` is ready for a
-            Vec3fArray).
+            Vertex displacements (mesh units; plus ``offset`` when given), C-contiguous (each
+            ``points[k]`` is ready for a Vec3fArray).
+        boxes : ndarray, shape (f, 2, 3), ``dtype``
+            With ``extents=True`` only: per frame, the min and max of ``points`` over the vertices.
 
         Raises
         ------
@@ -692,7 +738,13 @@ class RBFTransfer:
             reduced system is singular; raised before the first chunk.
         """
         disp, scan, chunk_frames, dtype = self._prepare(displacements, chunk_frames, dtype, blas_threads)
-        return self._generate(disp, scan, chunk_frames, dtype, blas_threads, reuse_buffer=bool(reuse_buffer))
+        rhs = None if offset is None else self._offset_rhs(offset, dtype)
+        if buffers is not None and (isinstance(buffers, bool) or not isinstance(buffers, (int, np.integer))
+                                    or buffers < 1):
+            raise OptionError(f"buffers: expected an integer >= 1 or None; got {buffers!r}")
+        n_buffers = 1 if reuse_buffer else (int(buffers) if buffers is not None else 0)
+        return self._generate(disp, scan, chunk_frames, dtype, blas_threads, n_buffers=n_buffers,
+                              rhs=rhs, extents=bool(extents))
 
     def _prepare(self, displacements, chunk_frames, dtype, blas_threads):
         """Check the arguments, fit if needed and scan validity (raising before any output)."""
@@ -711,37 +763,40 @@ class RBFTransfer:
         self._ensure_fitted()
         return disp, self._scan(disp), int(chunk_frames), dtype
 
-    def _generate(self, disp, scan, chunk_frames, dtype, blas_threads, out=None, reuse_buffer=False):
+    def _generate(self, disp, scan, chunk_frames, dtype, blas_threads, out=None, n_buffers=0,
+                  rhs=None, extents=False):
         valid, pid, keys = scan
         F = disp.shape[0]
         if F == 0:
             return
         tmp = self._gemm_buffer(min(F, chunk_frames), dtype)
-        buffer = None
-        if reuse_buffer and out is None:
-            buffer = np.empty((min(F, chunk_frames), self.n_vertices, 3), dtype=dtype)
+        ring = []
+        if n_buffers and out is None:
+            ring = [np.empty((min(F, chunk_frames), self.n_vertices, 3), dtype=dtype)
+                    for _ in range(min(n_buffers, -(-F // chunk_frames)))]
         limiter = None
         if blas_threads is not None:
             from threadpoolctl import ThreadpoolController
 
             limiter = ThreadpoolController()
         held = None
-        for a in range(0, F, chunk_frames):
+        for i, a in enumerate(range(0, F, chunk_frames)):
             b = min(F, a + chunk_frames)
             eff = self._effective(disp[a:b], valid[a:b], pid[a:b], keys, held)
             held = eff[-1].copy()
             if out is not None:
                 chunk = out[a:b]
-            elif buffer is not None:
-                chunk = buffer[: b - a]
+            elif ring:
+                chunk = ring[i % len(ring)][: b - a]
             else:
                 chunk = np.empty((b - a, self.n_vertices, 3), dtype=dtype)
+            boxes = np.empty((b - a, 2, 3), dtype=dtype) if extents else None
             if limiter is None:
-                self._evaluate(eff, chunk, tmp)
+                self._evaluate(eff, chunk, tmp, rhs=rhs, extents=boxes)
             else:
                 with limiter.limit(limits=int(blas_threads), user_api="blas"):
-                    self._evaluate(eff, chunk, tmp)
-            yield slice(a, b), chunk
+                    self._evaluate(eff, chunk, tmp, rhs=rhs, extents=boxes)
+            yield (slice(a, b), chunk, boxes) if extents else (slice(a, b), chunk)
 
     def apply(self, displacements, *, dtype=np.float32, chunk_frames: int | None = None,
               blas_threads: int | None = None) -> np.ndarray:

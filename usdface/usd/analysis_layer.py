@@ -123,9 +123,10 @@ def prefetch(iterable):
     """Iterate ``iterable`` one item ahead in a worker thread.
 
     The transfer's chunks are numpy matrix products (which release the GIL): computing the next
-    chunk while USD writes the current one overlaps the two instead of adding them. Items must
-    not share buffers (RBFTransfer.iter_chunks with reuse_buffer=False, its default). An
-    exception in the producer is raised here, in the consumer.
+    chunk while USD writes the current one overlaps the two instead of adding them. An item must
+    stay valid while the next one is computed: fresh arrays, or a ring of at least 3 buffers
+    (RBFTransfer.iter_chunks ``buffers=3``; not ``reuse_buffer=True``). An exception in the
+    producer is raised here, in the consumer.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -151,8 +152,8 @@ def frame_extents(points: np.ndarray) -> np.ndarray:
     return np.stack([xyz.min(axis=2), xyz.max(axis=2)], axis=1)
 
 
-def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, start: float, rate: float,
-                          n_frames: int, units, transfer: dict, prov: dict, progress=None,
+def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | None = None, start: float,
+                          rate: float, n_frames: int, units, transfer: dict, prov: dict, progress=None,
                           head_motion: np.ndarray | None = None) -> str:
     """Stream time-sampled points into an animation layer (.usdc), saving after every chunk.
 
@@ -161,10 +162,14 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
 
     Parameters
     ----------
-    chunks : iterable of (slice, ndarray (f, N, 3) float32)
-        Vertex displacements for frames ``slice`` (0-based), in mesh units.
-    rest_points : ndarray (N, 3)
-        The mesh's rest positions; authored points = rest + displacement.
+    chunks : iterable of (slice, ndarray (f, N, 3) float32) or (slice, points, extents (f, 2, 3))
+        Frames ``slice`` (0-based) and their vertex displacements from ``rest_points``, or, when
+        ``rest_points`` is None, their vertex positions (mesh units). A third item gives each
+        frame's bounding box (computed here otherwise).
+    rest_points : ndarray (N, 3), optional
+        The mesh's rest positions; authored points = rest + displacement. None: the chunks hold
+        the positions (:meth:`usdface.rbf.RBFTransfer.iter_chunks` with ``offset`` adds the rest
+        inside its matrix product, and gives the extents too: the writer then only writes).
     transfer : dict
         FaceTransferAPI values: mode, kernel, distanceMethod, markerNames, widths, regularization,
         polynomial, conditionNumber, parameters (dict).
@@ -175,7 +180,7 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
     require_registered()
     mesh_stage = open_stage(mesh_path, what="mesh")
     mesh_prim_path = find_mesh(mesh_stage).GetPath()
-    rest = np.asarray(rest_points, dtype=np.float32)
+    rest = None if rest_points is None else np.asarray(rest_points, dtype=np.float32)
     root_name = mesh_stage.GetDefaultPrim().GetName()
     with output_layer(path) as stage:
         add_sublayer(stage, mesh_path, path)
@@ -206,9 +211,11 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray, s
         points_attr = mesh.CreatePointsAttr()
         extent_attr = mesh.CreateExtentAttr()
         written = 0
-        for frames, disp in prefetch(chunks):
-            pts = disp + rest[None]
-            extents = frame_extents(pts)
+        for item in prefetch(chunks):
+            frames, pts = item[0], item[1]
+            if rest is not None:
+                pts = pts + rest[None]
+            extents = item[2] if len(item) > 2 and item[2] is not None else frame_extents(pts)
             # (no Sdf.ChangeBlock here: with large arrays it made the sets ~2x slower)
             for k, f in enumerate(range(frames.start, frames.stop)):
                 t = Usd.TimeCode(start + f)
