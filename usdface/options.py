@@ -411,7 +411,7 @@ class DistanceOptions(_Options):
     method: str = option("hybrid", flag="--method", choices=METHODS, group="distances",
                          help="Euclidean (Eq. 6), geodesic (Eq. 7) or hybrid (Eq. 8)")
     backend: str = option("graph", flag="--backend", choices=BACKENDS, group="distances",
-                          help="geodesic back-end: shortest edge paths (the paper's), heat method, exact polyhedral")
+                          help="geodesic back-end: shortest edge paths (the paper's, default), fmm (fast marching: accurate), heat method, exact polyhedral (small meshes)")
     region_radius: float = option(1.0, flag="--region-radius", coerce=_nonnegative_float, metavar="CM",
                                   group="distances",
                                   help="hybrid: geodesic regions = vertices within this distance of the mouth/eye "
@@ -531,7 +531,7 @@ class SolveOptions(_Options):
                                             "naming them)")
 
     def solver_kwargs(self) -> dict:
-        """The keyword arguments of the solver (usdface.processors.solve SOLVER_DEFAULTS)."""
+        """The keyword arguments of the solver (usdface.processors.solve.solver_defaults)."""
         return dict(smoothing_hz=self.smoothing or None, sparsity=self.sparsity, symmetry=self.symmetry,
                     exclude=self.exclude, refit=self.refit, max_iterations=self.max_iterations,
                     tolerance=self.tolerance)

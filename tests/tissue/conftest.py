@@ -47,8 +47,14 @@ def make_face(name, path) -> Face:
 
 @pytest.fixture(scope="session")
 def faces(sample_assets) -> dict:
-    logging.getLogger("usdface").setLevel(logging.ERROR)
-    return {k: make_face(k, sample_assets / "meshes" / v) for k, v in MESHES.items()}
+    # quiet while the rigs are built, then the level back: tests elsewhere read usdface's warnings
+    log = logging.getLogger("usdface")
+    level = log.level
+    log.setLevel(logging.ERROR)
+    try:
+        return {k: make_face(k, sample_assets / "meshes" / v) for k, v in MESHES.items()}
+    finally:
+        log.setLevel(level)
 
 
 @pytest.fixture(scope="session")

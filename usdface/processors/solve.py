@@ -15,9 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..blendshape.solver import (DEFAULT_MAX_ITERATIONS, DEFAULT_SMOOTHING_HZ, DEFAULT_SPARSITY, DEFAULT_SYMMETRY,
-                                 DEFAULT_TOLERANCE)
-from ..blendshape.take import DEFAULT_EXCLUDE
 from ..errors import InputError, OptionError, list_names
 
 log = logging.getLogger("usdface")
@@ -25,9 +22,16 @@ log = logging.getLogger("usdface")
 __all__ = ["load_rig", "solve", "apply_curves", "solve_shot", "write_deliverables", "register_cli"]
 
 #: solver options shared by solve, solve_shot and the batch keys (D4: the lead's options object)
-SOLVER_DEFAULTS = dict(smoothing_hz=DEFAULT_SMOOTHING_HZ, sparsity=DEFAULT_SPARSITY, symmetry=DEFAULT_SYMMETRY,
-                       exclude=DEFAULT_EXCLUDE, refit=True, max_iterations=DEFAULT_MAX_ITERATIONS,
-                       tolerance=DEFAULT_TOLERANCE)
+def solver_defaults() -> dict:
+    """The solver's keyword arguments and their defaults (smoothing_hz, sparsity, symmetry, exclude,
+    refit, max_iterations, tolerance). A function, not a constant: the solver module loads numba
+    kernels, which the command line should not pay for at start-up."""
+    from ..blendshape.solver import (DEFAULT_MAX_ITERATIONS, DEFAULT_SMOOTHING_HZ, DEFAULT_SPARSITY, DEFAULT_SYMMETRY,
+                                     DEFAULT_TOLERANCE)
+    from ..blendshape.take import DEFAULT_EXCLUDE
+
+    return dict(smoothing_hz=DEFAULT_SMOOTHING_HZ, sparsity=DEFAULT_SPARSITY, symmetry=DEFAULT_SYMMETRY,
+                exclude=DEFAULT_EXCLUDE, refit=True, max_iterations=DEFAULT_MAX_ITERATIONS, tolerance=DEFAULT_TOLERANCE)
 
 
 # -- inputs -------------------------------------------------------------------------------------
@@ -217,7 +221,7 @@ def solve(mesh, capture, output, *, shapes=None, layout=None, auto=False, csv=No
     head_motion : bool
         D1: the head motion as /Face's time-sampled transform (default when the capture had any).
     solver_options
-        :data:`SOLVER_DEFAULTS` (smoothing_hz, sparsity, symmetry, exclude, refit, max_iterations,
+        :func:`solver_defaults` (smoothing_hz, sparsity, symmetry, exclude, refit, max_iterations,
         tolerance).
     """
     from ..blendshape.take import deliverable_curves, solve_take
@@ -226,10 +230,11 @@ def solve(mesh, capture, output, *, shapes=None, layout=None, auto=False, csv=No
     from .import_capture import condition_capture, load_capture
 
     t0 = time.perf_counter()
-    unknown = set(solver_options) - set(SOLVER_DEFAULTS)
+    defaults = solver_defaults()
+    unknown = set(solver_options) - set(defaults)
     if unknown:
         raise OptionError(f"solve: unknown option(s) {', '.join(sorted(unknown))}")
-    opts = {**SOLVER_DEFAULTS, **solver_options}
+    opts = {**defaults, **solver_options}
     if (layout is None) == (not auto):
         raise OptionError("solve: give exactly one of --layout LAYOUT.json or --auto")
     if corrective is True:
@@ -453,7 +458,7 @@ def solve_shot(mesh_path, capture_path, binding_path, out_dir, *, shapes=None, m
     from ..usd.mesh_layer import read_binding
 
     t0 = time.perf_counter()
-    opts = {**SOLVER_DEFAULTS, **solver_options}
+    opts = {**solver_defaults(), **solver_options}
     out = Path(out_dir)
     if not out.is_dir():
         raise OptionError(f"{out}: no such folder")

@@ -18,13 +18,36 @@
 No pxr here: rig and animation layers are written by :mod:`usdface.usd.muscle_layer`, the
 commands live in :mod:`usdface.processors.tissue`.
 """
-from .animate import animate
-from .expressions import PRESET_NAMES, PRESETS, Timeline, expression_timeline, preset_contractions, read_timeline
-from .fit import FitResult, LinearResponse, fit_frames, fit_sequence, linear_response
-from .integrators import INTEGRATORS, DivergenceError, EquilibriumReport, Simulator
-from .model import TissueModel, TissueOptions, build_tissue_model
-from .muscles import Jaw, Muscle, MuscleSet, compile_muscles
-from .rig import MuscleRig, default_rig, face_landmarks, jaw_weights, warp_rig
+import importlib
+
+#: public name -> submodule; loaded on first use, so that the command line (which only needs the
+#: preset and integrator names) does not pay for the numba kernels at start-up
+_EXPORTS = {
+    "animate": "animate",
+    "PRESET_NAMES": "expressions", "PRESETS": "expressions", "Timeline": "expressions",
+    "expression_timeline": "expressions", "preset_contractions": "expressions", "read_timeline": "expressions",
+    "FitResult": "fit", "LinearResponse": "fit", "fit_frames": "fit", "fit_sequence": "fit",
+    "linear_response": "fit",
+    "INTEGRATORS": "integrators", "DivergenceError": "integrators", "EquilibriumReport": "integrators",
+    "Simulator": "integrators",
+    "TissueModel": "model", "TissueOptions": "model", "build_tissue_model": "model",
+    "Jaw": "muscles", "Muscle": "muscles", "MuscleSet": "muscles", "compile_muscles": "muscles",
+    "MuscleRig": "rig", "default_rig": "rig", "face_landmarks": "rig", "jaw_weights": "rig", "warp_rig": "rig",
+}
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))
+
 
 __all__ = [
     "INTEGRATORS", "PRESETS", "PRESET_NAMES", "DivergenceError", "EquilibriumReport", "FitResult", "Jaw",

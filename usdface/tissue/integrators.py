@@ -37,12 +37,11 @@ from ..errors import ComputeError, OptionError
 from . import _kernels as kn
 from .forces import (incidence, muscle_forces, prism_volume_gradients, skull_forces, smooth_ramp, spring_forces,
                      volume_forces)
-from .model import TissueModel
+from .model import INTEGRATORS, TissueModel
 from .muscles import Jaw, MuscleSet, check_contractions
 
 log = logging.getLogger("usdface")
 
-INTEGRATORS = ("explicit", "symplectic", "implicit")
 BACKENDS = ("auto", "numba", "numpy")
 
 
