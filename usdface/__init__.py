@@ -2,7 +2,7 @@
 
 Importing usdface registers its USD schemas (see :mod:`usdface.usd.schemas`).
 """
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 from .errors import UsdFaceError  # noqa: E402
 
