@@ -20,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["CACHE", "cache_dir", "configure", "is_cached", "notice_compiling"]
+__all__ = ["AVAILABLE", "CACHE", "cache_dir", "configure", "is_cached", "njit", "notice_compiling"]
 
 _PACKAGE = Path(__file__).resolve().parent
 _configured: dict = {}
@@ -130,3 +130,24 @@ def notice_compiling(what: str, *dispatchers, seconds: str = "15-60 s") -> bool:
 
 #: ``cache=`` for usdface's numba kernels (see :func:`configure`)
 CACHE = configure()
+
+try:  # numba is a dependency; without it the kernels' callers run their numpy paths
+    import numba as _numba
+    AVAILABLE = True
+except ImportError:  # pragma: no cover - exercised only without numba
+    _numba = None
+    AVAILABLE = False
+
+
+def njit(*args, **kwargs):
+    """``numba.njit`` for usdface's kernels: ``cache=True`` caches on disk only where
+    :func:`configure` found a writable folder (a read-only install compiles in memory instead of
+    failing at import). Without numba it returns the Python function unchanged (check
+    :data:`AVAILABLE` to choose a numpy path)."""
+    if _numba is None:
+        def keep(f):
+            return f
+        return keep(args[0]) if args and callable(args[0]) else keep
+    if kwargs.get("cache"):
+        kwargs["cache"] = CACHE
+    return _numba.njit(*args, **kwargs)

@@ -7,16 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-try:  # numba is a dependency, but the solver keeps working on numpy without it
-    from numba import njit
-    AVAILABLE = True
-except ImportError:  # pragma: no cover - exercised only without numba
-    AVAILABLE = False
-
-    def njit(*args, **kwargs):
-        def wrap(f):
-            return f
-        return wrap(args[0]) if args and callable(args[0]) else wrap
+from ..numba_cache import AVAILABLE, njit  # the solver keeps a numpy path without numba
 
 
 @njit(cache=True)

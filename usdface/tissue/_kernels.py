@@ -7,16 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-try:  # numba is optional: the engine runs (slower) on numpy without it
-    from numba import njit
-    AVAILABLE = True
-except ImportError:  # pragma: no cover - exercised only without numba
-    AVAILABLE = False
-
-    def njit(*args, **kwargs):
-        def wrap(f):
-            return f
-        return wrap(args[0]) if args and callable(args[0]) else wrap
+from ..numba_cache import AVAILABLE, njit  # the engine runs (slower) on numpy without it
 
 
 #: energy slots of :func:`total_forces`

@@ -10,11 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-try:
-    import numba
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover - numba is a dependency, but stay importable without it
-    HAVE_NUMBA = False
+from ..numba_cache import AVAILABLE as HAVE_NUMBA, njit
 
 __all__ = ["HAVE_NUMBA", "refine_blobs"]
 
@@ -189,6 +185,6 @@ def _refine_blobs_py(frame, d2lut, thr2, boxes, blobs, ri, weights, min_alpha):
 
 
 if HAVE_NUMBA:
-    refine_blobs = numba.njit(cache=True, nogil=True)(_refine_blobs_py)
+    refine_blobs = njit(cache=True, nogil=True)(_refine_blobs_py)
 else:  # pragma: no cover
     refine_blobs = _refine_blobs_py
