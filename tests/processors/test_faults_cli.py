@@ -179,10 +179,13 @@ def test_sigterm_is_handled_like_ctrl_c(old_shot, tmp_path, sig, code, said):
     out = tmp_path / "shot"
     shutil.copytree(old_shot, out)
     before = _digests(out)
-    p = _start(RUN + ["--trim", "0", "40", "-o", str(out)])
+    # 400 frames: the run must still be writing when the signal lands, also on a loaded machine
+    # (with 40 frames it sometimes finished between two polls and exited 0)
+    p = _start(RUN + ["--trim", "0", "400", "-o", str(out)])
     deadline = time.time() + 60
     while not any(x.name.startswith(".usdface-run-") for x in out.iterdir()) and time.time() < deadline:
         time.sleep(0.05)
+    assert p.poll() is None, "the run ended before it could be signalled"
     p.send_signal(sig)
     _, err = p.communicate(timeout=60)
     assert p.returncode == code, err
