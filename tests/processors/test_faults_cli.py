@@ -169,8 +169,11 @@ def test_second_run_into_a_locked_folder_is_refused(old_shot, tmp_path, capsys):
 # -- signals --------------------------------------------------------------------------------------
 
 def _start(argv, **env) -> subprocess.Popen:
+    # SIGINT as a terminal's Ctrl-C finds it: a test run started in the background (`pytest &`,
+    # nohup) passes SIGINT ignored to its children, and Python then keeps it ignored
     return subprocess.Popen([sys.executable, "-m", "usdface", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=dict(os.environ, **env))
+                            stderr=subprocess.PIPE, text=True, env=dict(os.environ, **env),
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 @pytest.mark.parametrize("sig,code,said", [(signal.SIGTERM, 143, "stopped by SIGTERM; partial work removed"),
