@@ -120,3 +120,4 @@ def test_reused_buffers_equal_fresh_ones_after_a_larger_frame(face, projection):
     render_module._SCRATCH.buffers = {}
     alone = render_mesh(small, face["tris"], **kw)
     assert np.array_equal(after, alone)
+

@@ -62,15 +62,19 @@ def _bound(lo, hi, yc, xl, yl, slope, kind, horizontal, hsign, ya):  # pragma: n
 
 
 @njit(cache=True, nogil=True)
-def rasterize_kernel(xy, z, tri, w, h, tri_index, zbuf, front, box):  # pragma: no cover - compiled
+def rasterize_kernel(xy, z, tri, w, h, tri_index, zbuf, front, box, stale):  # pragma: no cover - compiled
     """Z-buffered scanline rasterisation into ``tri_index`` (H*W int32) and ``zbuf`` (H*W float64).
 
     Same coverage rule and edge arithmetic as :func:`usdface.preview.render.rasterize`: per row,
     each edge (in canonical low-y-first form, set up once per triangle) bounds the covered
     x-interval of pixel centres. Also writes ``front`` ((T,) bool: signed image area < 0, the
     camera-facing triangles) and ``box`` ((4,) int64: first row, last row, first column, last
-    column of the covered pixels; last < first when nothing is covered). ``tri_index`` and
-    ``zbuf`` must hold -1 and +inf on entry.
+    column of the covered pixels; last < first when nothing is covered).
+
+    ``tri_index`` must hold -1 on entry; ``zbuf`` counts as +inf wherever ``tri_index`` is -1, and
+    must hold +inf there except inside ``stale`` ((4,) int64 box, empty when last < first): a
+    reused buffer need not clear its old depths, only its triangle indices (a third of the bytes).
+    On return ``zbuf`` is +inf at every uncovered pixel.
     """
     inf = np.inf
     bi0, bi1, bj0, bj1 = h, -1, w, -1
@@ -101,6 +105,7 @@ def rasterize_kernel(xy, z, tri, w, h, tri_index, zbuf, front, box):  # pragma: 
         gx = (dz1 * e2y - dz2 * e1y) / area
         gy = (dz2 * e1x - dz1 * e2x) / area
         sgn = 1.0 if area > 0 else -1.0
+        t32 = np.int32(t)
         al, ay, asl, ak, ah, ahs = _edge(x0, y0, x1, y1, sgn)
         bl, by, bsl, bk, bh, bhs = _edge(x1, y1, x2, y2, sgn)
         cl, cy, csl, ck, ch, chs = _edge(x2, y2, x0, y0, sgn)
@@ -120,14 +125,22 @@ def rasterize_kernel(xy, z, tri, w, h, tri_index, zbuf, front, box):  # pragma: 
             bj0 = min(bj0, jj)
             bj1 = max(bj1, jj + cnt - 1)
             zrow = z0 + gx * (j0 + 0.5 - x0) + gy * (yc - y0)
-            base = row * w + jj
+            base = np.uint64(row * w + jj)  # unsigned: no negative-index wrap-around per access
             for kk in range(cnt):
                 d = zrow + gx * kk
-                p = base + kk
-                if d <= zbuf[p]:
-                    zbuf[p] = d
-                    tri_index[p] = t
+                p = base + np.uint64(kk)
+                cur = tri_index[p]
+                old = zbuf[p] if cur >= 0 else inf
+                take = d <= old  # branch-free select
+                zbuf[p] = d if take else old
+                tri_index[p] = t32 if take else cur
     box[0], box[1], box[2], box[3] = bi0, bi1, bj0, bj1
+    for row in range(max(stale[0], 0), min(stale[1], h - 1) + 1):  # old depths left uncovered
+        base = np.uint64(row * w)
+        for col in range(max(stale[2], 0), min(stale[3], w - 1) + 1):
+            p = base + np.uint64(col)
+            if tri_index[p] < 0:
+                zbuf[p] = inf
 
 
 @njit(cache=True, nogil=True)
@@ -220,10 +233,11 @@ def shade_kernel(block, tri_index, w, mode, specular, perspective, scalar, lut, 
 # ------------------------------------------------------------------------------------------------
 # orthographic fast path: attributes as planes in screen space
 # ------------------------------------------------------------------------------------------------
-#: rows of the plane table of :func:`ortho_planes_kernel` ((P_ROWS, T) float32): the triangle's
-#: origin (its first vertex), 1.0 for a back face, then (value at the origin, d/dx, d/dy) of red,
-#: green, blue, normal x, y, z, the normalised scalar and the NaN weight
-P_ORIGIN, P_BACK, P_RGB, P_NORMAL, P_SCALAR, P_NAN, P_ROWS = 0, 2, 3, 12, 21, 24, 27
+#: columns of the plane table of :func:`ortho_planes_kernel` ((T, P_COLUMNS) float32, a triangle
+#: per row: 27 used, padded to 128 bytes): the triangle's origin (its first vertex), 1.0 for a back
+#: face, then (value at the origin, d/dx, d/dy) of red, green, blue, normal x, y, z, the
+#: normalised scalar and the NaN weight
+P_ORIGIN, P_BACK, P_RGB, P_NORMAL, P_SCALAR, P_NAN, P_COLUMNS = 0, 2, 3, 12, 21, 24, 32
 
 
 @njit(cache=True, nogil=True)
@@ -264,14 +278,14 @@ def camera_normals_kernel(points, tri, rot, flat, out):  # pragma: no cover - co
 @njit(cache=True, nogil=True, inline="always")
 def _plane(planes, t, row, a0, a1, a2, g2, g3, g4, g5):  # pragma: no cover - compiled
     d1, d2 = a1 - a0, a2 - a0
-    planes[row, t] = a0
-    planes[row + 1, t] = d1 * g2 + d2 * g4
-    planes[row + 2, t] = d1 * g3 + d2 * g5
+    planes[t, row] = a0
+    planes[t, row + 1] = d1 * g2 + d2 * g4
+    planes[t, row + 2] = d1 * g3 + d2 * g5
 
 
 @njit(cache=True, nogil=True)
 def ortho_planes_kernel(xy, tri, front, normals, per_vertex, colors, scalar_t, planes):  # pragma: no cover - compiled
-    """Per-triangle plane table ((P_ROWS, T) float32) for :func:`ortho_shade_kernel`.
+    """Per-triangle plane table ((T, P_COLUMNS) float32) for :func:`ortho_shade_kernel`.
 
     Under an orthographic camera an attribute interpolated with barycentric weights is an affine
     function of the image position over a triangle: ``a + ax (x - x0) + ay (y - y0)`` with (x0, y0)
@@ -292,9 +306,9 @@ def ortho_planes_kernel(xy, tri, front, normals, per_vertex, colors, scalar_t, p
         if not math.isfinite(inv):
             inv = 0.0
         g2, g3, g4, g5 = e2y * inv, -e2x * inv, -e1y * inv, e1x * inv
-        planes[P_ORIGIN, t] = x0 if math.isfinite(x0) else 0.0
-        planes[P_ORIGIN + 1, t] = y0 if math.isfinite(y0) else 0.0
-        planes[P_BACK, t] = 0.0 if front[t] else 1.0
+        planes[t, P_ORIGIN] = x0 if math.isfinite(x0) else 0.0
+        planes[t, P_ORIGIN + 1] = y0 if math.isfinite(y0) else 0.0
+        planes[t, P_BACK] = 0.0 if front[t] else 1.0
         for k in range(3):
             _plane(planes, t, P_RGB + 3 * k, colors[a, k], colors[b, k], colors[c, k], g2, g3, g4, g5)
         sign = 1.0 if front[t] else -1.0
@@ -313,29 +327,34 @@ def ortho_planes_kernel(xy, tri, front, normals, per_vertex, colors, scalar_t, p
             _plane(planes, t, P_NAN, 0.0 if f0 else 1.0, 0.0 if f1 else 1.0, 0.0 if f2 else 1.0, g2, g3, g4, g5)
         else:
             for k in range(6):
-                planes[P_SCALAR + k, t] = 0.0
+                planes[t, P_SCALAR + k] = 0.0
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def _light_span(n, lit, nx, ny, nz, r, g, b, back, specular, tint, key, fill, half, o):  # pragma: no cover - compiled
-    """Lighting of n pixels from their interpolated normal and colour (contiguous arrays: a loop
-    the compiler vectorises) into ``o`` ((3, n) float32, BGR 0..255 before the uint8 cast)."""
+def _light_span(n, lit, nx, ny, nz, r, g, b, back, specular, tint, key, fill, half, ob, og, orr):  # pragma: no cover - compiled
+    """Lighting of n pixels from their interpolated normal and colour (contiguous arrays, the
+    light vectors held in scalars: a loop the compiler vectorises) into ``ob``, ``og``, ``orr``
+    ((n,) float32, 0..255 before the uint8 cast)."""
     zero, top, hp, one = np.float32(0.0), np.float32(255.0), np.float32(0.5), np.float32(1.0)
     if not lit:
         for k in range(n):
-            o[0, k] = min(max(b[k] * top + hp, zero), top)
-            o[1, k] = min(max(g[k] * top + hp, zero), top)
-            o[2, k] = min(max(r[k] * top + hp, zero), top)
+            ob[k] = min(max(b[k] * top + hp, zero), top)
+            og[k] = min(max(g[k] * top + hp, zero), top)
+            orr[k] = min(max(r[k] * top + hp, zero), top)
         return
+    k0, k1, k2 = key[0], key[1], key[2]
+    f0, f1, f2 = fill[0], fill[1], fill[2]
+    h0, h1, h2 = half[0], half[1], half[2]
+    t0, t1, t2 = tint[0], tint[1], tint[2]
     for k in range(n):
         x, y, z = nx[k], ny[k], nz[k]
         inv = one / max(np.sqrt(x * x + y * y + z * z), np.float32(1e-20))
         x *= inv
         y *= inv
         z *= inv
-        kd = max(key[0] * x + key[1] * y + key[2] * z, zero)
-        fd = max(fill[0] * x + fill[1] * y + fill[2] * z, zero)
-        hv = max(half[0] * x + half[1] * y + half[2] * z, zero)
+        kd = max(k0 * x + k1 * y + k2 * z, zero)
+        fd = max(f0 * x + f1 * y + f2 * z, zero)
+        hv = max(h0 * x + h1 * y + h2 * z, zero)
         h8 = hv * hv
         h8 *= h8
         h8 *= h8
@@ -346,9 +365,9 @@ def _light_span(n, lit, nx, ny, nz, r, g, b, back, specular, tint, key, fill, ha
         m = one - np.float32(0.6) * f
         light = (np.float32(0.20) + np.float32(0.72) * kd + np.float32(0.26) * fd) * (one - np.float32(0.38) * f)
         spec *= specular * (one - f)
-        o[0, k] = min(max(((b[k] * m + tint[2] * f) * light + spec) * top + hp, zero), top)
-        o[1, k] = min(max(((g[k] * m + tint[1] * f) * light + spec) * top + hp, zero), top)
-        o[2, k] = min(max(((r[k] * m + tint[0] * f) * light + spec) * top + hp, zero), top)
+        ob[k] = min(max(((b[k] * m + t2 * f) * light + spec) * top + hp, zero), top)
+        og[k] = min(max(((g[k] * m + t1 * f) * light + spec) * top + hp, zero), top)
+        orr[k] = min(max(((r[k] * m + t0 * f) * light + spec) * top + hp, zero), top)
 
 
 @njit(cache=True, nogil=True)
@@ -370,52 +389,58 @@ def ortho_shade_kernel(planes, tri_index, box, lit, scalar, specular, lut, nan_r
     att = np.zeros((9, wb), np.float32)
     r_, g_, b_, nx_, ny_, nz_, nan_, sc_, bk_ = att[0], att[1], att[2], att[3], att[4], att[5], att[6], att[7], att[8]
     o = np.empty((3, wb), np.float32)
+    ob, og, orr = o[0], o[1], o[2]
     nl = lut.shape[1]
     hp = np.float32(0.5)
     sp = np.float32(specular)
     z = np.float32(0.0)
     # the planes of the first three attributes: the colour, or the scalar and its NaN weight
     q0, q1, q2 = (P_SCALAR, P_NAN, P_NAN) if scalar else (P_RGB, P_RGB + 3, P_RGB + 6)
+    one = np.uint64(1)
     for i in range(r0, r1 + 1):
         row = tri_index[i]
         fy = np.float32(i) + hp
-        n = 0
+        # unsigned indices below: numba checks signed ones for negative wrap-around on every access
+        m = np.uint64(0)
         tprev = -1
+        tu = np.uint64(0)
         x0 = dy = bv = z
         a0 = a1 = a2 = a3 = a4 = a5 = z  # value at the triangle's origin
         s0 = s1 = s2 = s3 = s4 = s5 = z  # d/dx
         u0 = u1 = u2 = u3 = u4 = u5 = z  # d/dy
         for j in range(c0, c1 + 1):
-            t = row[j]
+            t = row[np.uint64(j)]
             if t < 0:
                 continue
             if t != tprev:
                 tprev = t
-                x0 = planes[P_ORIGIN, t]
-                dy = fy - planes[P_ORIGIN + 1, t]
-                bv = planes[P_BACK, t]
-                a0, s0, u0 = planes[q0, t], planes[q0 + 1, t], planes[q0 + 2, t]
-                a1, s1, u1 = planes[q1, t], planes[q1 + 1, t], planes[q1 + 2, t]
-                a2, s2, u2 = planes[q2, t], planes[q2 + 1, t], planes[q2 + 2, t]
+                tu = np.uint64(t)
+                x0 = planes[tu, P_ORIGIN]
+                dy = fy - planes[tu, P_ORIGIN + 1]
+                bv = planes[tu, P_BACK]
+                a0, s0, u0 = planes[tu, q0], planes[tu, q0 + 1], planes[tu, q0 + 2]
+                a1, s1, u1 = planes[tu, q1], planes[tu, q1 + 1], planes[tu, q1 + 2]
+                a2, s2, u2 = planes[tu, q2], planes[tu, q2 + 1], planes[tu, q2 + 2]
                 if lit:
-                    a3, s3, u3 = planes[P_NORMAL, t], planes[P_NORMAL + 1, t], planes[P_NORMAL + 2, t]
-                    a4, s4, u4 = planes[P_NORMAL + 3, t], planes[P_NORMAL + 4, t], planes[P_NORMAL + 5, t]
-                    a5, s5, u5 = planes[P_NORMAL + 6, t], planes[P_NORMAL + 7, t], planes[P_NORMAL + 8, t]
+                    a3, s3, u3 = planes[tu, P_NORMAL], planes[tu, P_NORMAL + 1], planes[tu, P_NORMAL + 2]
+                    a4, s4, u4 = planes[tu, P_NORMAL + 3], planes[tu, P_NORMAL + 4], planes[tu, P_NORMAL + 5]
+                    a5, s5, u5 = planes[tu, P_NORMAL + 6], planes[tu, P_NORMAL + 7], planes[tu, P_NORMAL + 8]
             dx = np.float32(j) + hp - x0
-            cols[n] = j
+            cols[m] = j
             if scalar:
-                sc_[n] = a0 + s0 * dx + u0 * dy
-                nan_[n] = a1 + s1 * dx + u1 * dy
+                sc_[m] = a0 + s0 * dx + u0 * dy
+                nan_[m] = a1 + s1 * dx + u1 * dy
             else:
-                r_[n] = a0 + s0 * dx + u0 * dy
-                g_[n] = a1 + s1 * dx + u1 * dy
-                b_[n] = a2 + s2 * dx + u2 * dy
+                r_[m] = a0 + s0 * dx + u0 * dy
+                g_[m] = a1 + s1 * dx + u1 * dy
+                b_[m] = a2 + s2 * dx + u2 * dy
             if lit:
-                nx_[n] = a3 + s3 * dx + u3 * dy
-                ny_[n] = a4 + s4 * dx + u4 * dy
-                nz_[n] = a5 + s5 * dx + u5 * dy
-                bk_[n] = bv
-            n += 1
+                nx_[m] = a3 + s3 * dx + u3 * dy
+                ny_[m] = a4 + s4 * dx + u4 * dy
+                nz_[m] = a5 + s5 * dx + u5 * dy
+                bk_[m] = bv
+            m += one
+        n = np.int64(m)
         if n == 0:
             continue
         if scalar:
@@ -425,10 +450,11 @@ def ortho_shade_kernel(planes, tri_index, box, lit, scalar, specular, lut, nan_r
                     r_[k], g_[k], b_[k] = lut[0, idx], lut[1, idx], lut[2, idx]
                 else:
                     r_[k], g_[k], b_[k] = nan_rgb[0], nan_rgb[1], nan_rgb[2]
-        _light_span(n, lit, nx_, ny_, nz_, r_, g_, b_, bk_, sp, tint, key, fill, half, o)
+        _light_span(n, lit, nx_, ny_, nz_, r_, g_, b_, bk_, sp, tint, key, fill, half, ob, og, orr)
         orow = out[i]
         for k in range(n):
-            j = cols[k]
-            orow[j, 0] = np.uint8(o[0, k])
-            orow[j, 1] = np.uint8(o[1, k])
-            orow[j, 2] = np.uint8(o[2, k])
+            ku = np.uint64(k)
+            j = np.uint64(cols[ku])
+            orow[j, 0] = np.uint8(ob[ku])
+            orow[j, 1] = np.uint8(og[ku])
+            orow[j, 2] = np.uint8(orr[ku])

@@ -96,15 +96,20 @@ def rasterize(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
     return _rasterize_numpy(xy, zkey, triangles, size, max_candidates=max_candidates)
 
 
-def _rasterize_compiled(kernels, xy, zkey, triangles, tri_index, zbuf) -> tuple[np.ndarray, tuple]:
-    """The compiled rasteriser into ``tri_index`` / ``zbuf`` ((H, W), holding -1 / +inf); returns
-    the triangles' facing (T,) bool and the box of covered pixels (first/last row, first/last column)."""
+_NO_BOX = (0, -1, 0, -1)
+
+
+def _rasterize_compiled(kernels, xy, zkey, triangles, tri_index, zbuf, stale=_NO_BOX) -> tuple[np.ndarray, tuple]:
+    """The compiled rasteriser into ``tri_index`` / ``zbuf`` ((H, W), holding -1 / +inf, except
+    old depths inside the box ``stale``); returns the triangles' facing (T,) bool and the box of
+    covered pixels (first/last row, first/last column)."""
     h, w = tri_index.shape
     tri = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
     front = np.empty(tri.shape[0], dtype=bool)
     box = np.empty(4, dtype=np.int64)
     kernels.rasterize_kernel(np.ascontiguousarray(xy, dtype=np.float64), np.ascontiguousarray(zkey, dtype=np.float64),
-                             tri, w, h, tri_index.reshape(-1), zbuf.reshape(-1), front, box)
+                             tri, w, h, tri_index.reshape(-1), zbuf.reshape(-1), front, box,
+                             np.asarray(stale, dtype=np.int64))
     return front, tuple(int(v) for v in box)
 
 
@@ -276,8 +281,8 @@ def render_buffers(points: np.ndarray, triangles: np.ndarray, camera: Camera, *,
     box = None
     if kernels is not None:
         w, h = camera.size
-        tri_index, zbuf, scratch = _clean_buffers(w, h, _reuse)
-        front, box = _rasterize_compiled(kernels, xy, zkey, triangles, tri_index, zbuf)
+        tri_index, zbuf, scratch, stale = _clean_buffers(w, h, _reuse)
+        front, box = _rasterize_compiled(kernels, xy, zkey, triangles, tri_index, zbuf, stale)
         if scratch is not None:
             scratch[2] = box
     else:
@@ -300,10 +305,12 @@ _SCRATCH = threading.local()
 
 
 def _clean_buffers(w: int, h: int, reuse: bool):
-    """(triangle, depth, scratch entry or None): (H, W) int32 all -1 and float64 all +inf, fresh or
-    this thread's (the box the last user covered, recorded in ``scratch[2]``, cleared)."""
+    """(triangle, depth, scratch entry or None, stale box) for the compiled rasteriser: (H, W)
+    int32 all -1 and float64 all +inf, fresh or this thread's. A reused pair has its triangles
+    cleared in the box the last user covered (recorded in ``scratch[2]``) and keeps that user's
+    depths there (the stale box), which the rasteriser ignores and resets."""
     if not reuse or w * h > _SCRATCH_MAX_PIXELS:
-        return np.full((h, w), -1, dtype=np.int32), np.full((h, w), np.inf), None
+        return np.full((h, w), -1, dtype=np.int32), np.full((h, w), np.inf), None, _NO_BOX
     cache = getattr(_SCRATCH, "buffers", None)
     if cache is None:
         cache = _SCRATCH.buffers = {}
@@ -313,12 +320,12 @@ def _clean_buffers(w: int, h: int, reuse: bool):
             cache.clear()
         entry = cache[(w, h)] = [np.full((h, w), -1, dtype=np.int32), np.full((h, w), np.inf), None]
     tri_index, zbuf, dirty = entry
+    stale = _NO_BOX
     if dirty is not None and dirty[1] >= dirty[0]:
-        r0, r1, c0, c1 = dirty
+        r0, r1, c0, c1 = stale = dirty
         tri_index[r0:r1 + 1, c0:c1 + 1] = -1
-        zbuf[r0:r1 + 1, c0:c1 + 1] = np.inf
     entry[2] = (0, h - 1, 0, w - 1)  # until the rasteriser says which box it covered
-    return tri_index, zbuf, entry
+    return tri_index, zbuf, entry, stale
 
 
 def _neighbourhood_max(depth: np.ndarray, radius: int) -> np.ndarray:

@@ -145,7 +145,7 @@ def _shade_planes(kernels, buf: Buffers, points, tris, colors, out, *, shading, 
     normals = np.zeros((tris.shape[0] if flat else points.shape[0], 3))
     if shading != "unlit":
         kernels.camera_normals_kernel(points, tris, rot, flat, normals)
-    planes = np.empty((kernels.P_ROWS, tris.shape[0]), np.float32)
+    planes = np.empty((tris.shape[0], kernels.P_COLUMNS), np.float32)
     st = _EMPTY if scalar_t is None else np.ascontiguousarray(scalar_t, dtype=np.float64)
     kernels.ortho_planes_kernel(np.ascontiguousarray(buf.xy, dtype=np.float64), tris, buf.front, normals, not flat,
                                 np.ascontiguousarray(colors, dtype=np.float64), st, planes)
