@@ -121,3 +121,27 @@ def test_reused_buffers_equal_fresh_ones_after_a_larger_frame(face, projection):
     alone = render_mesh(small, face["tris"], **kw)
     assert np.array_equal(after, alone)
 
+
+def test_region_colours_cache_serves_the_same_colours_and_tells_regions_apart(face):
+    from usdface.preview.render import _BAND_CACHE, _REGION_COLOR_CACHE, _region_colors
+
+    pts, tris = face["points"], face["tris"]
+    diag = float(np.linalg.norm(np.ptp(pts, axis=0)))
+    low = np.flatnonzero(pts[:, 1] < np.percentile(pts[:, 1], 8))
+    regions = {"mouth": low[:40], "leftEye": low[40:60], "forehead": np.flatnonzero(pts[:, 1] > np.percentile(pts[:, 1], 90))}
+    _REGION_COLOR_CACHE.clear()
+    _BAND_CACHE.clear()
+    first, legend = _region_colors(pts, tris, regions, None, diag)
+    assert len(_REGION_COLOR_CACHE) == 1
+    first[:] = 0.0  # the caller's copy: the cache keeps its own
+    again, legend_again = _region_colors(pts, tris, regions, None, diag)
+    _REGION_COLOR_CACHE.clear()
+    _BAND_CACHE.clear()
+    fresh, legend_fresh = _region_colors(pts, tris, regions, None, diag)
+    assert np.array_equal(again, fresh) and legend_again == legend_fresh == legend
+    assert np.abs(fresh - np.asarray(CLAY)).max(axis=1).astype(bool).sum() > 60  # regions and bands coloured
+    fewer = dict(regions, mouth=low[:30])
+    other, _ = _region_colors(pts, tris, fewer, None, diag)
+    assert not np.array_equal(other, fresh)
+    repainted, legend_repainted = _region_colors(pts, tris, regions, {"forehead": (255, 0, 0)}, diag)
+    assert np.allclose(repainted[regions["forehead"]], (1.0, 0.0, 0.0)) and legend_repainted != legend

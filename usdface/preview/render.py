@@ -250,7 +250,8 @@ class Buffers:
         return out
 
 
-def render_buffers(points: np.ndarray, triangles: np.ndarray, camera: Camera, *, _reuse: bool = False) -> Buffers:
+def render_buffers(points: np.ndarray, triangles: np.ndarray, camera: Camera, *, _reuse: bool = False,
+                   _checked: bool = False) -> Buffers:
     """Rasterise a mesh through ``camera`` (see :func:`rasterize`).
 
     Parameters
@@ -268,9 +269,11 @@ def render_buffers(points: np.ndarray, triangles: np.ndarray, camera: Camera, *,
     ``_reuse`` (internal, :func:`render_mesh`): with the compiled rasteriser, the triangle and depth
     buffers are this thread's scratch buffers, valid until its next ``_reuse`` call, and only the
     box the previous frame covered is cleared. A movie renders hundreds of frames: fresh
-    full-size buffers cost more in page faults than the rasterisation itself.
+    full-size buffers cost more in page faults than the rasterisation itself. ``_checked``
+    (internal): ``points`` and ``triangles`` already passed :func:`_check_mesh` (float64, int64).
     """
-    points, triangles = _check_mesh(points, triangles)
+    if not _checked:
+        points, triangles = _check_mesh(points, triangles)
     xy, depth = camera.project(points)
     if camera.perspective:
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -617,7 +620,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         raise OptionError(f"preview: camera must be a usdface.preview.Camera; got {type(camera).__name__}")
     w, h = camera.size
     s = _overlay_scale((w, h))  # overlay scale (text, dots); not below half size to stay legible
-    diag = float(np.linalg.norm(np.ptp(points, axis=0))) or 1.0
+    diag = float(np.linalg.norm([np.ptp(points[:, k]) for k in range(3)])) or 1.0  # per column: fast
     tol = 0.01 * diag if occlusion_tolerance is None else float(occlusion_tolerance)
 
     # --- per-vertex colours ---------------------------------------------------------------------
@@ -632,23 +635,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         vc = vc[:, :3].astype(np.float64) / (255.0 if vc.dtype == np.uint8 else 1.0)
         colors = np.clip(np.nan_to_num(vc, nan=0.5), 0.0, 1.0)
     elif region_colors is not None:
-        items = _region_items(region_colors)
-        pal = _region_palette([it[0] for it in items], [it[1] for it in items])
-        for name, rgb in (region_palette or {}).items():
-            pal[name] = _rgb(rgb, f"region_palette[{name!r}]")
-        topology = None
-        for name, role, idx in items:
-            if idx.size and (not np.issubdtype(idx.dtype, np.integer) or idx.min() < 0 or idx.max() >= n):
-                raise MeshError(f"preview: region {name!r} has vertex indices outside 0..{n - 1}")
-            if idx.size and (role in LOOP_ROLES or (role is None and name in LOOP_NAMES)):
-                # a loop of vertices (hole or border) is one vertex wide: shade a band around it
-                rgb = np.asarray(pal[name], dtype=np.float64) / 255
-                topology = topology or _digest(tris)
-                near, weight = _band_cached(points, topology, idx.astype(np.int64), BAND_WIDTH * diag)
-                colors[near] = colors[near] * (1 - weight[:, None]) + rgb * weight[:, None]
-        for name, _role, idx in items:
-            colors[idx.astype(np.int64)] = np.asarray(pal[name], dtype=np.float64) / 255
-            legend_entries.append(("swatch", pal[name], f"{name} ({np.unique(idx).size})"))
+        colors, legend_entries = _region_colors(points, tris, region_colors, region_palette, diag)
     elif scalars is not None:
         sc = np.asarray(scalars, dtype=np.float64).ravel()
         if sc.size != n:
@@ -663,7 +650,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
 
     # --- rasterise, shade, wireframe (at the supersampled resolution) ---------------------------
     cam_hi = camera.resized(ss) if ss > 1 else camera
-    buf = render_buffers(points, tris, cam_hi, _reuse=True)
+    buf = render_buffers(points, tris, cam_hi, _reuse=True, _checked=True)
     out = _background(cam_hi.size, background)
     _shade(buf, points, tris, colors, out, shading=shading, specular=0.10 if scalars is None else 0.04,
            scalar_t=scalar_t, lut=lut)
@@ -759,6 +746,43 @@ BAND_WIDTH = 0.035
 
 
 _BAND_CACHE: dict = {}
+_REGION_COLOR_CACHE: dict = {}
+
+
+def _region_colors(points, tris, region_colors, region_palette, diag) -> tuple[np.ndarray, list]:
+    """(per-vertex colours (N, 3) float64 0..1, legend entries) of :func:`render_mesh`'s
+    ``region_colors``: clay, a band fading out around loop regions (holes, border), the regions'
+    own colours on top. Cached per mesh topology, regions and palette: every frame of a movie has
+    the same colours (the bands are measured on the first pose seen, as :func:`_band_cached`)."""
+    n = points.shape[0]
+    items = _region_items(region_colors)
+    topology = _digest(tris)
+    key = (n, topology, tuple((name, role, str(idx.dtype), _digest(idx)) for name, role, idx in items),
+           tuple(sorted((str(k), tuple(v) if isinstance(v, (list, tuple)) else repr(v))
+                        for k, v in (region_palette or {}).items())))
+    hit = _REGION_COLOR_CACHE.get(key)
+    if hit is not None:
+        return hit[0].copy(), list(hit[1])
+    pal = _region_palette([it[0] for it in items], [it[1] for it in items])
+    for name, rgb in (region_palette or {}).items():
+        pal[name] = _rgb(rgb, f"region_palette[{name!r}]")
+    colors = np.broadcast_to(np.asarray(CLAY), (n, 3)).copy()
+    legend_entries = []
+    for name, role, idx in items:
+        if idx.size and (not np.issubdtype(idx.dtype, np.integer) or idx.min() < 0 or idx.max() >= n):
+            raise MeshError(f"preview: region {name!r} has vertex indices outside 0..{n - 1}")
+        if idx.size and (role in LOOP_ROLES or (role is None and name in LOOP_NAMES)):
+            # a loop of vertices (hole or border) is one vertex wide: shade a band around it
+            rgb = np.asarray(pal[name], dtype=np.float64) / 255
+            near, weight = _band_cached(points, topology, idx.astype(np.int64), BAND_WIDTH * diag)
+            colors[near] = colors[near] * (1 - weight[:, None]) + rgb * weight[:, None]
+    for name, _role, idx in items:
+        colors[idx.astype(np.int64)] = np.asarray(pal[name], dtype=np.float64) / 255
+        legend_entries.append(("swatch", pal[name], f"{name} ({np.unique(idx).size})"))
+    if len(_REGION_COLOR_CACHE) >= 32:
+        _REGION_COLOR_CACHE.clear()
+    _REGION_COLOR_CACHE[key] = (colors.copy(), list(legend_entries))
+    return colors, legend_entries
 
 
 def _digest(a: np.ndarray) -> str:
