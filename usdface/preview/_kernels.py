@@ -114,8 +114,10 @@ def rasterize_kernel(xy, z, tri, w, h, tri_index, zbuf, front, box, stale):  # p
             lo, hi = _bound(-inf, inf, yc, al, ay, asl, ak, ah, ahs, y0)
             lo, hi = _bound(lo, hi, yc, bl, by, bsl, bk, bh, bhs, y1)
             lo, hi = _bound(lo, hi, yc, cl, cy, csl, ck, ch, chs, y2)
-            j0 = max(math.ceil(lo - 0.5), 0.0)
-            j1 = min(math.floor(hi - 0.5), w - 1.0)
+            # np.ceil / np.floor as the numpy rasteriser: float results (math.ceil gives an int64,
+            # undefined for the +inf that the horizontal-edge rule uses to empty a row)
+            j0 = max(np.ceil(lo - 0.5), 0.0)
+            j1 = min(np.floor(hi - 0.5), w - 1.0)
             if not j1 >= j0:
                 continue
             cnt = int(j1 - j0 + 1)
