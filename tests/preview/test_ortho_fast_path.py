@@ -145,3 +145,22 @@ def test_region_colours_cache_serves_the_same_colours_and_tells_regions_apart(fa
     assert not np.array_equal(other, fresh)
     repainted, legend_repainted = _region_colors(pts, tris, regions, {"forehead": (255, 0, 0)}, diag)
     assert np.allclose(repainted[regions["forehead"]], (1.0, 0.0, 0.0)) and legend_repainted != legend
+
+
+def test_compiled_text_paste_is_the_numpy_blend_bit_for_bit(monkeypatch):
+    from usdface.preview import overlays
+    from usdface.preview.overlays import _paste, _text_sprite
+
+    rng = np.random.default_rng(5)
+    base, gain, _ = _text_sprite("frame 0123  00:00:02:03", 0.8, (245, 245, 245), 1, True)
+    assert base.size and (gain < 0.999).any() and (gain > 0.001).any()  # glyphs with soft edges
+    img = rng.integers(0, 256, (60, 200, 3), dtype=np.uint8)
+    for x, y in ((3, 5), (-20, -4), (150, 40), (500, 5)):  # inside, clipped top-left, bottom-right, outside
+        fast, slow = img.copy(), img.copy()
+        _paste(fast, base, gain, x, y)
+        with monkeypatch.context() as m:
+            m.setattr(overlays, "_compiled", lambda: None)
+            _paste(slow, base, gain, x, y)
+        assert np.array_equal(fast, slow)
+        if x < 200:
+            assert not np.array_equal(fast, img)

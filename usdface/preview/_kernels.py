@@ -31,8 +31,8 @@ except ImportError:  # pragma: no cover - numba is a dependency; stay importable
             return f
         return wrap(args[0]) if args and callable(args[0]) else wrap
 
-__all__ = ["AVAILABLE", "camera_normals_kernel", "ortho_planes_kernel", "ortho_shade_kernel", "rasterize_kernel",
-           "shade_kernel"]
+__all__ = ["AVAILABLE", "camera_normals_kernel", "ortho_planes_kernel", "ortho_shade_kernel", "paste_kernel",
+           "rasterize_kernel", "shade_kernel"]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -460,3 +460,22 @@ def ortho_shade_kernel(planes, tri_index, box, lit, scalar, specular, lut, nan_r
             orow[j, 0] = np.uint8(ob[ku])
             orow[j, 1] = np.uint8(og[ku])
             orow[j, 2] = np.uint8(orr[ku])
+
+
+@njit(cache=True, nogil=True)
+def paste_kernel(img, base, gain, y0, x0, sy, sx, rows, cols):  # pragma: no cover - compiled
+    """Blend a text sprite into ``img`` ((H, W, 3) uint8, C-contiguous) as
+    ``usdface.preview.overlays._paste`` does in numpy, bit for bit: ``img[y0 + i, x0 + j] =
+    uint8(clip(base + gain * img + 0.5, 0, 255))`` in float32, with ``base`` and ``gain`` ((h, w,
+    3) float32, C-contiguous) read at (sy + i, sx + j), for i < ``rows``, j < ``cols``. A frame
+    has a dozen texts: numpy's temporaries cost more than the blend."""
+    zero, top, hp = np.float32(0.0), np.float32(255.0), np.float32(0.5)
+    n = np.uint64(3 * cols)
+    for i in range(rows):
+        dst = img[y0 + i, x0:x0 + cols].reshape(-1)  # a pixel run of one row: contiguous
+        b = base[sy + i, sx:sx + cols].reshape(-1)
+        g = gain[sy + i, sx:sx + cols].reshape(-1)
+        for k in range(n):
+            ku = np.uint64(k)
+            v = b[ku] + g[ku] * np.float32(dst[ku]) + hp
+            dst[ku] = np.uint8(min(max(v, zero), top))
