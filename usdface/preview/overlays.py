@@ -9,7 +9,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ._common import _bgr, _cv2
+from ._common import _bgr, _compiled, _cv2
 
 
 def _overlay_scale(size) -> float:
@@ -78,12 +78,17 @@ def _text_sprite(text, scale, rgb, thickness, outline):
 
 
 def _paste(img, base, gain, x, y) -> None:
-    """Blend a text sprite into ``img`` with its top-left corner at (x, y), clipped to the image."""
+    """Blend a text sprite into ``img`` with its top-left corner at (x, y), clipped to the image
+    (compiled when numba is installed: the same float32 arithmetic, without the temporaries)."""
     h, w = img.shape[:2]
     sh, sw = base.shape[:2]
     x0, y0 = max(x, 0), max(y, 0)
     x1, y1 = min(x + sw, w), min(y + sh, h)
     if x1 <= x0 or y1 <= y0:
+        return
+    kernels = _compiled()
+    if kernels is not None and img.flags.c_contiguous and base.flags.c_contiguous and gain.flags.c_contiguous:
+        kernels.paste_kernel(img, base, gain, y0, x0, y0 - y, x0 - x, y1 - y0, x1 - x0)
         return
     sl = (slice(y0 - y, y1 - y), slice(x0 - x, x1 - x))
     under = img[y0:y1, x0:x1].astype(np.float32)

@@ -24,6 +24,7 @@ How a frame is made
 """
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
@@ -88,13 +89,28 @@ def rasterize(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
     kernels = _compiled()
     if kernels is not None:
         w, h = (int(s) for s in size)
-        tri_index = np.full(h * w, -1, dtype=np.int32)
-        zbuf = np.full(h * w, np.inf)
-        tri = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
-        kernels.rasterize_kernel(np.ascontiguousarray(xy, dtype=np.float64),
-                                  np.ascontiguousarray(zkey, dtype=np.float64), tri, w, h, tri_index, zbuf)
-        return tri_index.reshape(h, w), zbuf.reshape(h, w)
+        tri_index = np.full((h, w), -1, dtype=np.int32)
+        zbuf = np.full((h, w), np.inf)
+        _rasterize_compiled(kernels, xy, zkey, triangles, tri_index, zbuf)
+        return tri_index, zbuf
     return _rasterize_numpy(xy, zkey, triangles, size, max_candidates=max_candidates)
+
+
+_NO_BOX = (0, -1, 0, -1)
+
+
+def _rasterize_compiled(kernels, xy, zkey, triangles, tri_index, zbuf, stale=_NO_BOX) -> tuple[np.ndarray, tuple]:
+    """The compiled rasteriser into ``tri_index`` / ``zbuf`` ((H, W), holding -1 / +inf, except
+    old depths inside the box ``stale``); returns the triangles' facing (T,) bool and the box of
+    covered pixels (first/last row, first/last column)."""
+    h, w = tri_index.shape
+    tri = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
+    front = np.empty(tri.shape[0], dtype=bool)
+    box = np.empty(4, dtype=np.int64)
+    kernels.rasterize_kernel(np.ascontiguousarray(xy, dtype=np.float64), np.ascontiguousarray(zkey, dtype=np.float64),
+                             tri, w, h, tri_index.reshape(-1), zbuf.reshape(-1), front, box,
+                             np.asarray(stale, dtype=np.int64))
+    return front, tuple(int(v) for v in box)
 
 
 def _rasterize_numpy(xy: np.ndarray, zkey: np.ndarray, triangles: np.ndarray, size, *,
@@ -208,6 +224,9 @@ class Buffers:
         Vertex depths.
     front : ndarray, shape (T,), bool
         True for triangles facing the camera (counter-clockwise as seen by it).
+    box : (int, int, int, int), optional
+        First row, last row, first column, last column of the covered pixels (last < first when
+        none is); None when not known.
     """
 
     camera: Camera
@@ -216,6 +235,7 @@ class Buffers:
     xy: np.ndarray
     vertex_depth: np.ndarray
     front: np.ndarray
+    box: tuple | None = None
 
     @property
     def covered(self) -> np.ndarray:
@@ -230,7 +250,8 @@ class Buffers:
         return out
 
 
-def render_buffers(points: np.ndarray, triangles: np.ndarray, camera: Camera) -> Buffers:
+def render_buffers(points: np.ndarray, triangles: np.ndarray, camera: Camera, *, _reuse: bool = False,
+                   _checked: bool = False) -> Buffers:
     """Rasterise a mesh through ``camera`` (see :func:`rasterize`).
 
     Parameters
@@ -242,25 +263,72 @@ def render_buffers(points: np.ndarray, triangles: np.ndarray, camera: Camera) ->
     Returns
     -------
     Buffers
+
+    Notes
+    -----
+    ``_reuse`` (internal, :func:`render_mesh`): with the compiled rasteriser, the triangle and depth
+    buffers are this thread's scratch buffers, valid until its next ``_reuse`` call, and only the
+    box the previous frame covered is cleared. A movie renders hundreds of frames: fresh
+    full-size buffers cost more in page faults than the rasterisation itself. ``_checked``
+    (internal): ``points`` and ``triangles`` already passed :func:`_check_mesh` (float64, int64).
     """
-    points, triangles = _check_mesh(points, triangles)
+    if not _checked:
+        points, triangles = _check_mesh(points, triangles)
     xy, depth = camera.project(points)
     if camera.perspective:
         with np.errstate(divide="ignore", invalid="ignore"):
             zkey = np.where(depth > 0, -1.0 / depth, np.nan)
     else:
         zkey = depth
-    tri_index, zbuf = rasterize(xy, zkey, triangles, camera.size)
-    if camera.perspective:
-        with np.errstate(divide="ignore"):
-            zbuf = -1.0 / zbuf  # -1/inf = -0 for background: restore +inf below
-        zbuf[tri_index < 0] = np.inf
-    t = triangles
-    with np.errstate(invalid="ignore"):
-        area = ((xy[t[:, 1], 0] - xy[t[:, 0], 0]) * (xy[t[:, 2], 1] - xy[t[:, 0], 1])
-                - (xy[t[:, 2], 0] - xy[t[:, 0], 0]) * (xy[t[:, 1], 1] - xy[t[:, 0], 1]))
-    front = area < 0  # image y points down: counter-clockwise in the world looks clockwise here
-    return Buffers(camera=camera, triangle=tri_index, depth=zbuf, xy=xy, vertex_depth=depth, front=front)
+    kernels = _compiled()
+    box = None
+    if kernels is not None:
+        w, h = camera.size
+        tri_index, zbuf, scratch, stale = _clean_buffers(w, h, _reuse)
+        front, box = _rasterize_compiled(kernels, xy, zkey, triangles, tri_index, zbuf, stale)
+        if scratch is not None:
+            scratch[2] = box
+    else:
+        tri_index, zbuf = _rasterize_numpy(xy, zkey, triangles, camera.size)
+        t = triangles
+        with np.errstate(invalid="ignore"):
+            area = ((xy[t[:, 1], 0] - xy[t[:, 0], 0]) * (xy[t[:, 2], 1] - xy[t[:, 0], 1])
+                    - (xy[t[:, 2], 0] - xy[t[:, 0], 0]) * (xy[t[:, 1], 1] - xy[t[:, 0], 1]))
+        front = area < 0  # image y points down: counter-clockwise in the world looks clockwise here
+    if camera.perspective:  # the key -1/depth back to depth, on the covered pixels
+        r0, r1, c0, c1 = box if box is not None else (0, tri_index.shape[0] - 1, 0, tri_index.shape[1] - 1)
+        sub, cov = zbuf[r0:r1 + 1, c0:c1 + 1], tri_index[r0:r1 + 1, c0:c1 + 1] >= 0
+        sub[cov] = -1.0 / sub[cov]
+    return Buffers(camera=camera, triangle=tri_index, depth=zbuf, xy=xy, vertex_depth=depth, front=front, box=box)
+
+
+#: largest buffers (pixels) kept per thread for reuse by render_mesh (~12 bytes a pixel)
+_SCRATCH_MAX_PIXELS = 1 << 23
+_SCRATCH = threading.local()
+
+
+def _clean_buffers(w: int, h: int, reuse: bool):
+    """(triangle, depth, scratch entry or None, stale box) for the compiled rasteriser: (H, W)
+    int32 all -1 and float64 all +inf, fresh or this thread's. A reused pair has its triangles
+    cleared in the box the last user covered (recorded in ``scratch[2]``) and keeps that user's
+    depths there (the stale box), which the rasteriser ignores and resets."""
+    if not reuse or w * h > _SCRATCH_MAX_PIXELS:
+        return np.full((h, w), -1, dtype=np.int32), np.full((h, w), np.inf), None, _NO_BOX
+    cache = getattr(_SCRATCH, "buffers", None)
+    if cache is None:
+        cache = _SCRATCH.buffers = {}
+    entry = cache.get((w, h))
+    if entry is None:
+        if len(cache) >= 2:
+            cache.clear()
+        entry = cache[(w, h)] = [np.full((h, w), -1, dtype=np.int32), np.full((h, w), np.inf), None]
+    tri_index, zbuf, dirty = entry
+    stale = _NO_BOX
+    if dirty is not None and dirty[1] >= dirty[0]:
+        r0, r1, c0, c1 = stale = dirty
+        tri_index[r0:r1 + 1, c0:c1 + 1] = -1
+    entry[2] = (0, h - 1, 0, w - 1)  # until the rasteriser says which box it covered
+    return tri_index, zbuf, entry, stale
 
 
 def _neighbourhood_max(depth: np.ndarray, radius: int) -> np.ndarray:
@@ -552,7 +620,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         raise OptionError(f"preview: camera must be a usdface.preview.Camera; got {type(camera).__name__}")
     w, h = camera.size
     s = _overlay_scale((w, h))  # overlay scale (text, dots); not below half size to stay legible
-    diag = float(np.linalg.norm(np.ptp(points, axis=0))) or 1.0
+    diag = float(np.linalg.norm([np.ptp(points[:, k]) for k in range(3)])) or 1.0  # per column: fast
     tol = 0.01 * diag if occlusion_tolerance is None else float(occlusion_tolerance)
 
     # --- per-vertex colours ---------------------------------------------------------------------
@@ -567,21 +635,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
         vc = vc[:, :3].astype(np.float64) / (255.0 if vc.dtype == np.uint8 else 1.0)
         colors = np.clip(np.nan_to_num(vc, nan=0.5), 0.0, 1.0)
     elif region_colors is not None:
-        items = _region_items(region_colors)
-        pal = _region_palette([it[0] for it in items], [it[1] for it in items])
-        for name, rgb in (region_palette or {}).items():
-            pal[name] = _rgb(rgb, f"region_palette[{name!r}]")
-        for name, role, idx in items:
-            if idx.size and (not np.issubdtype(idx.dtype, np.integer) or idx.min() < 0 or idx.max() >= n):
-                raise MeshError(f"preview: region {name!r} has vertex indices outside 0..{n - 1}")
-            if idx.size and (role in LOOP_ROLES or (role is None and name in LOOP_NAMES)):
-                # a loop of vertices (hole or border) is one vertex wide: shade a band around it
-                rgb = np.asarray(pal[name], dtype=np.float64) / 255
-                near, weight = _band_cached(points, tris, idx.astype(np.int64), BAND_WIDTH * diag)
-                colors[near] = colors[near] * (1 - weight[:, None]) + rgb * weight[:, None]
-        for name, _role, idx in items:
-            colors[idx.astype(np.int64)] = np.asarray(pal[name], dtype=np.float64) / 255
-            legend_entries.append(("swatch", pal[name], f"{name} ({np.unique(idx).size})"))
+        colors, legend_entries = _region_colors(points, tris, region_colors, region_palette, diag)
     elif scalars is not None:
         sc = np.asarray(scalars, dtype=np.float64).ravel()
         if sc.size != n:
@@ -596,7 +650,7 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
 
     # --- rasterise, shade, wireframe (at the supersampled resolution) ---------------------------
     cam_hi = camera.resized(ss) if ss > 1 else camera
-    buf = render_buffers(points, tris, cam_hi)
+    buf = render_buffers(points, tris, cam_hi, _reuse=True, _checked=True)
     out = _background(cam_hi.size, background)
     _shade(buf, points, tris, colors, out, shading=shading, specular=0.10 if scalars is None else 0.04,
            scalar_t=scalar_t, lut=lut)
@@ -692,15 +746,56 @@ BAND_WIDTH = 0.035
 
 
 _BAND_CACHE: dict = {}
+_REGION_COLOR_CACHE: dict = {}
 
 
-def _band_cached(points, tris, idx, width):
-    """:func:`_band` once per topology and region: a movie renders the same face hundreds of times
-    and the band is decoration (computed on the first pose seen)."""
+def _region_colors(points, tris, region_colors, region_palette, diag) -> tuple[np.ndarray, list]:
+    """(per-vertex colours (N, 3) float64 0..1, legend entries) of :func:`render_mesh`'s
+    ``region_colors``: clay, a band fading out around loop regions (holes, border), the regions'
+    own colours on top. Cached per mesh topology, regions and palette: every frame of a movie has
+    the same colours (the bands are measured on the first pose seen, as :func:`_band_cached`)."""
+    n = points.shape[0]
+    items = _region_items(region_colors)
+    topology = _digest(tris)
+    key = (n, topology, tuple((name, role, str(idx.dtype), _digest(idx)) for name, role, idx in items),
+           tuple(sorted((str(k), tuple(v) if isinstance(v, (list, tuple)) else repr(v))
+                        for k, v in (region_palette or {}).items())))
+    hit = _REGION_COLOR_CACHE.get(key)
+    if hit is not None:
+        return hit[0].copy(), list(hit[1])
+    pal = _region_palette([it[0] for it in items], [it[1] for it in items])
+    for name, rgb in (region_palette or {}).items():
+        pal[name] = _rgb(rgb, f"region_palette[{name!r}]")
+    colors = np.broadcast_to(np.asarray(CLAY), (n, 3)).copy()
+    legend_entries = []
+    for name, role, idx in items:
+        if idx.size and (not np.issubdtype(idx.dtype, np.integer) or idx.min() < 0 or idx.max() >= n):
+            raise MeshError(f"preview: region {name!r} has vertex indices outside 0..{n - 1}")
+        if idx.size and (role in LOOP_ROLES or (role is None and name in LOOP_NAMES)):
+            # a loop of vertices (hole or border) is one vertex wide: shade a band around it
+            rgb = np.asarray(pal[name], dtype=np.float64) / 255
+            near, weight = _band_cached(points, topology, idx.astype(np.int64), BAND_WIDTH * diag)
+            colors[near] = colors[near] * (1 - weight[:, None]) + rgb * weight[:, None]
+    for name, _role, idx in items:
+        colors[idx.astype(np.int64)] = np.asarray(pal[name], dtype=np.float64) / 255
+        legend_entries.append(("swatch", pal[name], f"{name} ({np.unique(idx).size})"))
+    if len(_REGION_COLOR_CACHE) >= 32:
+        _REGION_COLOR_CACHE.clear()
+    _REGION_COLOR_CACHE[key] = (colors.copy(), list(legend_entries))
+    return colors, legend_entries
+
+
+def _digest(a: np.ndarray) -> str:
     import hashlib
 
-    key = (points.shape[0], hashlib.sha1(np.ascontiguousarray(tris).tobytes()).hexdigest(),
-           hashlib.sha1(idx.tobytes()).hexdigest())
+    return hashlib.sha1(memoryview(np.ascontiguousarray(a)).cast("B")).hexdigest()
+
+
+def _band_cached(points, topology: str, idx, width):
+    """:func:`_band` once per topology (``topology``: the triangles' digest) and region: a movie
+    renders the same face hundreds of times and the band is decoration (computed on the first
+    pose seen)."""
+    key = (points.shape[0], topology, _digest(idx))
     hit = _BAND_CACHE.get(key)
     if hit is None:
         if len(_BAND_CACHE) >= 32:

@@ -52,7 +52,8 @@ def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarra
            lut: np.ndarray | None = None, compiled: bool | None = None) -> None:
     """Shade the covered pixels of ``out`` ((H, W, 3) uint8 BGR, written in place).
 
-    ``compiled``: use the numba kernel (default: when numba is installed) or the numpy reference.
+    ``compiled``: use the numba kernels (default: when numba is installed) or the numpy reference.
+    Orthographic cameras take the compiled plane shader (:func:`_shade_planes`).
 
     Per-triangle data (barycentric gradients, per-corner normal and colour) is packed once into a
     contiguous float32 block, so each pixel needs a single row gather.
@@ -63,9 +64,13 @@ def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarra
     pixels mostly weighted by NaN vertices show :data:`NAN_COLOR`.
     """
     h, w = buf.triangle.shape
-    flat_tri = buf.triangle.ravel()
     kernels = _compiled() if compiled is None or compiled else None
     compiled = kernels is not None
+    if compiled and not buf.camera.perspective:
+        _shade_planes(kernels, buf, points, tris, colors, out, shading=shading, specular=specular,
+                      scalar_t=scalar_t, lut=lut)
+        return
+    flat_tri = buf.triangle.ravel()
     if not compiled:
         pix = np.flatnonzero(flat_tri >= 0)
         if pix.size == 0:
@@ -123,6 +128,46 @@ def _shade(buf: Buffers, points: np.ndarray, tris: np.ndarray, colors: np.ndarra
                                                   scalar=scalar_t is not None, lut=lut32)
 
 
+def _shade_planes(kernels, buf: Buffers, points, tris, colors, out, *, shading, specular, scalar_t, lut) -> None:
+    """:func:`_shade` under an orthographic camera, compiled: every interpolated attribute (colour,
+    normal, scalar) is affine in image space over a triangle, so the per-triangle set-up
+    (:func:`usdface.preview._kernels.ortho_planes_kernel`, with the normals of
+    ``camera_normals_kernel``) stores its plane and a pixel costs one evaluation per attribute;
+    only the box of covered pixels is visited. Same picture as the barycentric reference within
+    float32 rounding (a level of 255 on a few pixels)."""
+    box = buf.box
+    if box is None:
+        box = _covered_box(buf.triangle)
+    if box[1] < box[0]:
+        return
+    rot = np.ascontiguousarray(buf.camera.rotation, dtype=np.float64)
+    flat = shading == "flat"
+    normals = np.zeros((tris.shape[0] if flat else points.shape[0], 3))
+    if shading != "unlit":
+        kernels.camera_normals_kernel(points, tris, rot, flat, normals)
+    planes = np.empty((tris.shape[0], kernels.P_COLUMNS), np.float32)
+    st = _EMPTY if scalar_t is None else np.ascontiguousarray(scalar_t, dtype=np.float64)
+    kernels.ortho_planes_kernel(np.ascontiguousarray(buf.xy, dtype=np.float64), tris, buf.front, normals, not flat,
+                                np.ascontiguousarray(colors, dtype=np.float64), st, planes)
+    lut32 = _NO_LUT if lut is None else np.ascontiguousarray(lut.T, dtype=np.float32)
+    kernels.ortho_shade_kernel(planes, buf.triangle, np.asarray(box, dtype=np.int64), shading != "unlit",
+                               scalar_t is not None, float(specular), lut32, _NAN32[:, 0], _TINT06, _KEY32, _FILL32,
+                               _HALF32, out)
+
+
+def _covered_box(triangle: np.ndarray) -> tuple[int, int, int, int]:
+    """(first row, last row, first column, last column) of the pixels showing a triangle (last <
+    first when none does)."""
+    cov = triangle >= 0
+    rows, cols = np.flatnonzero(cov.any(axis=1)), np.flatnonzero(cov.any(axis=0))
+    if rows.size == 0:
+        return 0, -1, 0, -1
+    return int(rows[0]), int(rows[-1]), int(cols[0]), int(cols[-1])
+
+
+_EMPTY = np.zeros(0)
+_NO_LUT = np.zeros((3, 1), np.float32)
+_TINT06 = (0.6 * np.asarray(BACK_TINT, dtype=np.float32)).astype(np.float32)
 _NAN32 = np.asarray(NAN_COLOR, dtype=np.float32)[:, None]
 _TINT32 = np.asarray(BACK_TINT, dtype=np.float32)[:, None]
 
