@@ -18,7 +18,7 @@ SCRIPT = """
 import os, sys, numpy as np
 import usdface
 # every module with compiled kernels imports where nothing beside the fallback folder is writable
-import usdface.tissue._kernels, usdface.blendshape._kernels, usdface.tracking._kernels, usdface.preview._kernels
+import usdface.preview._kernels, usdface.tissue._kernels, usdface.blendshape._kernels, usdface.tracking._kernels
 from usdface.distance import GeodesicSolver, graph
 pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.2]], dtype=float)
 tris = np.array([[0, 1, 2], [1, 3, 2]])

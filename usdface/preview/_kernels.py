@@ -20,16 +20,7 @@ import math
 
 import numpy as np
 
-try:
-    from numba import njit
-    AVAILABLE = True
-except ImportError:  # pragma: no cover - numba is a dependency; stay importable without it
-    AVAILABLE = False
-
-    def njit(*args, **kwargs):
-        def wrap(f):
-            return f
-        return wrap(args[0]) if args and callable(args[0]) else wrap
+from ..numba_cache import AVAILABLE, njit  # the renderer keeps its numpy path without numba
 
 __all__ = ["AVAILABLE", "camera_normals_kernel", "ortho_planes_kernel", "ortho_shade_kernel", "paste_kernel",
            "rasterize_kernel", "shade_kernel"]
