@@ -20,7 +20,7 @@ import threading
 from . import __version__
 from .cliargs import add_common_options, add_options, options_from_args
 from .errors import Interrupted, UsdFaceError
-from .options import COLORS, BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
+from .options import COLORS, VIEWS, BindOptions, CaptureOptions, DistanceOptions, RunOptions, TransferOptions
 
 log = logging.getLogger("usdface")
 
@@ -114,9 +114,7 @@ def _add_subcommands(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="PNG to write")
     p.add_argument("--frame", type=float, help="time code to show (default: the layer's start)")
     p.add_argument("--frames", type=float, nargs="+", metavar="F", help="several time codes: a contact sheet")
-    from .preview.camera import VIEW_CHOICES
-
-    p.add_argument("--view", choices=VIEW_CHOICES, default="front",
+    p.add_argument("--view", choices=VIEWS, default="front",
                    help="camera (the list playblast shares; turntable turns only in a playblast: a still is the front)")
     p.add_argument("--size", type=int, default=768, help="image size in pixels (square)")
     p.add_argument("--color", choices=COLORS, default="regions",

@@ -625,6 +625,9 @@ def _workers(value, flag):
     return n
 
 
+#: time integrators of the tissue simulator (usdface.tissue.integrators.Simulator)
+INTEGRATORS = ("explicit", "symplectic", "implicit")
+
 #: camera views shared by `preview` and `playblast` (usdface.preview.camera.VIEW_CHOICES)
 VIEWS = ("front", "three-quarter", "side", "turntable", "left", "right", "side_right")
 #: surface colours shared by `preview` and `playblast`

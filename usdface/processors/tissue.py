@@ -454,7 +454,7 @@ def register_cli(sub) -> None:
     """Add the ``muscles``, ``simulate`` and ``fit-muscles`` subcommands."""
     from ..cliargs import add_common_options
     from ..tissue.expressions import PRESET_NAMES
-    from ..tissue.model import INTEGRATORS
+    from ..options import INTEGRATORS
 
     p = sub.add_parser("muscles", help="place the default muscle rig on a face -> rig layer (.usda)",
                        description="Place a rig of named anatomical muscles (zygomaticMajor_L, frontalisInner_R, "

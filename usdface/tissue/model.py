@@ -44,11 +44,6 @@ LAYER_NAMES = ("epidermis", "fascia", "bone")
 SPRING_KINDS = ("epidermis", "fascia", "dermis", "deep")
 
 
-#: time integrators of :class:`usdface.tissue.integrators.Simulator` (here, beside the options, so
-#: the command line can list them without loading the numba kernels)
-INTEGRATORS = ("explicit", "symplectic", "implicit")
-
-
 @dataclass(frozen=True)
 class TissueOptions:
     """Material and construction options of the layered tissue model.
