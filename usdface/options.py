@@ -35,7 +35,8 @@ __all__ = [
 
 UNITS = tuple(METERS_PER_UNIT)
 METHODS = ("euclidean", "geodesic", "hybrid")
-BACKENDS = ("graph", "fmm", "heat", "exact")   # usdface.distance.BACKENDS (fmm: accurate surface geodesics)
+BACKENDS = ("graph", "fmm", "heat", "exact")   # geodesic back-ends (usdface.distance.GeodesicSolver)
+DEFAULT_BACKEND = "graph"                       # the paper's edge paths (README: why not fmm)
 KERNELS = ("gaussian", "multiquadric", "inverse_multiquadric", "thin_plate_spline", "cubic")
 #: deliverables `run` can write, in the order they are written
 OUTPUT_KINDS = ("points", "skel", "blendshapes")
@@ -410,7 +411,7 @@ class DistanceOptions(_Options):
 
     method: str = option("hybrid", flag="--method", choices=METHODS, group="distances",
                          help="Euclidean (Eq. 6), geodesic (Eq. 7) or hybrid (Eq. 8)")
-    backend: str = option("graph", flag="--backend", choices=BACKENDS, group="distances",
+    backend: str = option(DEFAULT_BACKEND, flag="--backend", choices=BACKENDS, group="distances",
                           help="geodesic back-end: shortest edge paths (the paper's, default), fmm (fast marching: accurate), heat method, exact polyhedral (small meshes)")
     region_radius: float = option(1.0, flag="--region-radius", coerce=_nonnegative_float, metavar="CM",
                                   group="distances",

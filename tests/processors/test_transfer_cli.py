@@ -228,3 +228,14 @@ def test_mesh_without_units_is_refused(runs, tmp_path, capsys, cli):
     assert cli("bind", "--mesh", tmp_path / "nounits.usda", "--capture", d / "capture.usdc", "--auto",
                "-o", tmp_path / "b.usda") == 2
     assert "units" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("bad", [0, -5, 2.7, None, True])
+def test_chunk_frames_is_checked_before_any_work(bad, tmp_path):
+    from usdface.errors import OptionError
+    from usdface.processors.transfer import transfer
+
+    with pytest.raises(OptionError, match="chunk_frames: expected an integer >= 1"):
+        transfer(tmp_path / "m.usdc", tmp_path / "c.usdc", tmp_path / "b.usda", tmp_path / "a.usdc",
+                 tmp_path / "out.usdc", chunk_frames=bad)
+    assert list(tmp_path.iterdir()) == []

@@ -97,8 +97,11 @@ class step_clock:
     """Wall seconds of each processor `run` calls during the ``with`` block: ``{step: seconds}``.
 
     Not every processor reports its own time in its summary, so the processor functions are
-    wrapped for the duration of one shot (run looks them up when it runs; a worker runs one shot at
-    a time) and restored after. Steps called twice add up.
+    wrapped for the duration of one shot (run looks them up when it runs) and restored after. Steps
+    called twice add up. This assumes one shot at a time per process, as serial runs and usdface's
+    LocalCluster (one thread per worker) do; on a farm whose Dask workers run several threads,
+    start them with ``--nthreads 1`` or the step times of concurrent shots mix (outputs are not
+    affected: only the timing).
     """
 
     def __enter__(self) -> dict:

@@ -12,12 +12,14 @@ Back-ends of :class:`GeodesicSolver`:
 ``"fmm"``
     Fast marching with exact point-source triangle updates, split obtuse corners and late-update
     reopening (:mod:`usdface.distance.marching`): surface geodesics within 0.03-0.4 % of exact
-    (MMP) on face meshes (0.03 % at 560k vertices), at 1.5-1.7x the CPU time of an edge-graph
-    search (one search per source, sources in parallel). Close to, not exactly, symmetric. Not
+    (MMP) on face meshes (0.34 % on the 2020-vertex sample face, 0.03 % at 560k vertices), at
+    about 2.6x the CPU time of an edge-graph search and 0.94x the wall time of scipy's multi-source
+    Dijkstra at 560k vertices (``benchmarks/bench_distances.py --n 17``; one search per source,
+    sources in parallel). Close to, not exactly, symmetric. Not
     the default: at the pipeline's kernel width rule (1.1 x marker spacing) the transfer of the
     sample expression shapes is better on the edge-graph distances (face error 57.7 % vs 62.0 %,
     benchmarks/quality_expressions.py); with a 0.75 x width, fmm hybrid gives 48.6 %, the best of
-    all (see the issue note).
+    all (the width sweep of benchmarks/quality_expressions.py).
 ``"heat"``
     The heat method (Crane et al. 2013) of potpourri3d (``MeshHeatMethodDistanceSolver``,
     intrinsic-Delaunay "robust" Laplacian by default). potpourri3d takes vertex sources only, so
@@ -54,6 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ComputeError, InputError, OptionError, list_names
+from ..options import BACKENDS, DEFAULT_BACKEND  # the back-ends, named once with the command line's options
 from . import graph as _graph
 from .euclidean import (_check_dtype, check_matrix_memory, pairwise_euclidean, source_points,
                         validate_sources, warn)
@@ -61,9 +64,6 @@ from .euclidean import (_check_dtype, check_matrix_memory, pairwise_euclidean, s
 __all__ = ["BACKENDS", "DEFAULT_BACKEND", "DistanceReport", "GeodesicResult", "GeodesicSolver", "auto_t_coef",
            "geodesic_distances"]
 
-BACKENDS = ("graph", "fmm", "heat", "exact")
-#: the back-end used when none is named (the paper's Eq. 7; "fmm" for accurate surface geodesics)
-DEFAULT_BACKEND = "graph"
 COMPONENT_POLICIES = ("error", "euclidean", "inf")
 
 #: t_coef = max(1, (L / (AUTO_T_RINGS h))^2): sqrt(t) never smaller than the bounding-box

@@ -21,7 +21,7 @@ log = logging.getLogger("usdface")
 
 __all__ = ["load_rig", "solve", "apply_curves", "solve_shot", "write_deliverables", "register_cli"]
 
-#: solver options shared by solve, solve_shot and the batch keys (D4: the lead's options object)
+
 def solver_defaults() -> dict:
     """The solver's keyword arguments and their defaults (smoothing_hz, sparsity, symmetry, exclude,
     refit, max_iterations, tolerance). A function, not a constant: the solver module loads numba

@@ -175,6 +175,8 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
     time-sampled transform of the face's root prim (:mod:`usdface.usd.motion`); False leaves the
     face head-stabilised.
     """
+    if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, (int, np.integer)) or chunk_frames < 1:
+        raise OptionError(f"chunk_frames: expected an integer >= 1; got {chunk_frames!r}")
     from ..capture.retarget import marker_displacements, mesh_head_motion
     from ..usd.analysis_layer import write_animation_layer
 

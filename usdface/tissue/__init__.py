@@ -23,17 +23,22 @@ import importlib
 #: public name -> submodule; loaded on first use, so that the command line (which only needs the
 #: preset and integrator names) does not pay for the numba kernels at start-up
 _EXPORTS = {
-    "animate": "animate",
     "PRESET_NAMES": "expressions", "PRESETS": "expressions", "Timeline": "expressions",
     "expression_timeline": "expressions", "preset_contractions": "expressions", "read_timeline": "expressions",
     "FitResult": "fit", "LinearResponse": "fit", "fit_frames": "fit", "fit_sequence": "fit",
     "linear_response": "fit",
-    "INTEGRATORS": "integrators", "DivergenceError": "integrators", "EquilibriumReport": "integrators",
+    "DivergenceError": "integrators", "EquilibriumReport": "integrators",
     "Simulator": "integrators",
     "TissueModel": "model", "TissueOptions": "model", "build_tissue_model": "model",
     "Jaw": "muscles", "Muscle": "muscles", "MuscleSet": "muscles", "compile_muscles": "muscles",
     "MuscleRig": "rig", "default_rig": "rig", "face_landmarks": "rig", "jaw_weights": "rig", "warp_rig": "rig",
 }
+
+
+# eager: the function shares its submodule's name, and a lazy attribute would lose to the submodule
+# once anything imports usdface.tissue.animate (the module is light: no simulator until it runs)
+from .animate import animate  # noqa: E402
+from ..options import INTEGRATORS  # noqa: E402  (named once, with the other options' choices)
 
 
 def __getattr__(name: str):

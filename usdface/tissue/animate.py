@@ -1,12 +1,14 @@
 """Driving a Simulator through a timeline, frame by frame."""
 from __future__ import annotations
 
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
 from .expressions import Timeline
-from .integrators import DivergenceError, Simulator
+
+if TYPE_CHECKING:  # the simulator (and its numba kernels) loads with the first simulation, not here
+    from .integrators import Simulator
 
 
 def animate(sim: Simulator, timeline: Timeline, *, frames=None, settle_first: bool = True,
@@ -22,6 +24,8 @@ def animate(sim: Simulator, timeline: Timeline, *, frames=None, settle_first: bo
     DivergenceError
         With the frame at which the simulation blew up.
     """
+    from .integrators import DivergenceError
+
     names = sim.muscles.names
     frames = timeline.frame_numbers() if frames is None else np.asarray(frames, dtype=np.float64)
     has_jaw = sim.jaw is not None
