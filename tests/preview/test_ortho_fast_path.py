@@ -7,7 +7,7 @@ import pytest
 
 from usdface.io.meshes import read_mesh
 from usdface.preview import Camera, colormap_lut, render_buffers, render_mesh
-from usdface.preview import render as render_module
+from usdface.preview import raster as raster_module
 from usdface.preview.colormap import CLAY, NAN_COLOR
 from usdface.preview.shading import _background, _covered_box, _shade
 
@@ -117,7 +117,7 @@ def test_reused_buffers_equal_fresh_ones_after_a_larger_frame(face, projection):
     kw = dict(camera=cam, legend=False, markers=small[::50])
     render_mesh(pts, face["tris"], **kw)
     after = render_mesh(small, face["tris"], **kw)
-    render_module._SCRATCH.buffers = {}
+    raster_module._SCRATCH.buffers = {}
     alone = render_mesh(small, face["tris"], **kw)
     assert np.array_equal(after, alone)
 

@@ -1,6 +1,6 @@
 """numba kernels of the preview renderer: the rasteriser and the per-pixel shaders, compiled.
 
-They compute what :func:`usdface.preview.render._rasterize_numpy` and
+They compute what :func:`usdface.preview.raster._rasterize_numpy` and
 :func:`usdface.preview.render._shade_pixels` compute in vectorised numpy (the slow, obvious
 references the tests compare them with), one triangle row or one pixel at a time, without the
 temporary arrays. Playblasts render every frame of a take, where the numpy versions cost about
@@ -56,7 +56,7 @@ def _bound(lo, hi, yc, xl, yl, slope, kind, horizontal, hsign, ya):  # pragma: n
 def rasterize_kernel(xy, z, tri, w, h, tri_index, zbuf, front, box, stale):  # pragma: no cover - compiled
     """Z-buffered scanline rasterisation into ``tri_index`` (H*W int32) and ``zbuf`` (H*W float64).
 
-    Same coverage rule and edge arithmetic as :func:`usdface.preview.render.rasterize`: per row,
+    Same coverage rule and edge arithmetic as :func:`usdface.preview.raster.rasterize`: per row,
     each edge (in canonical low-y-first form, set up once per triangle) bounds the covered
     x-interval of pixel centres. Also writes ``front`` ((T,) bool: signed image area < 0, the
     camera-facing triangles) and ``box`` ((4,) int64: first row, last row, first column, last

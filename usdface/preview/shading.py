@@ -15,7 +15,7 @@ from ._common import _bgr, _compiled, _rgb
 from .colormap import NAN_COLOR
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .render import Buffers
+    from .raster import Buffers
 
 #: default background: vertical gradient, RGB 0..255, top then bottom
 BACKGROUND = ((72, 76, 84), (30, 32, 36))

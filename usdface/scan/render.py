@@ -8,7 +8,7 @@ exact depth per pixel (the ray through the pixel centre intersected with the vis
 Conventions (OpenCV's): camera x right, y down, z forward; ``K`` maps camera coordinates to
 pixels, the centre of the top-left pixel is (0, 0); world-to-camera ``X_c = R X_w + t``.
 
-The scan conversion is :func:`usdface.preview.render.rasterize` (vectorised scanline, z-buffer);
+The scan conversion is :func:`usdface.preview.raster.rasterize` (vectorised scanline, z-buffer);
 this module adds exact per-pixel barycentrics and depth, texturing and shading.
 """
 from __future__ import annotations
@@ -136,7 +136,7 @@ class RenderResult:
 
 
 def _raycast(points, triangles, camera: PinholeCamera):
-    from ..preview.render import rasterize
+    from ..preview.raster import rasterize
 
     w, h = camera.size
     xy, z = camera.project(points)
