@@ -9,8 +9,8 @@ job (usdface/usd/). Images are ``(H, W, 3) uint8`` in OpenCV's **BGR** channel o
 How a frame is made
 -------------------
 1. :func:`~usdface.preview.raster.rasterize` (:mod:`usdface.preview.raster`): every triangle is
-   scan-converted over the pixel centres of its bounding box (a numba kernel, or vectorised numpy); a z-buffer (``np.minimum.at``) keeps the nearest
-   surface per pixel, whatever the drawing order. Coverage rule: a pixel belongs to a triangle when
+   scan-converted over the pixel centres of its bounding box (a numba kernel, or vectorised
+   numpy); a z-buffer keeps the nearest surface per pixel, whatever the drawing order. Coverage rule: a pixel belongs to a triangle when
    its centre is inside or on an edge.
 2. Shading, per pixel: barycentric (perspective-correct) interpolation of vertex normals and vertex
    colours, Lambert with a key light near the camera (a headlight), a fill light from the side, a
