@@ -10,8 +10,8 @@ How a frame is made
 -------------------
 1. :func:`~usdface.preview.raster.rasterize` (:mod:`usdface.preview.raster`): every triangle is
    scan-converted over the pixel centres of its bounding box (a numba kernel, or vectorised
-   numpy); a z-buffer keeps the nearest surface per pixel, whatever the drawing order. Coverage rule: a pixel belongs to a triangle when
-   its centre is inside or on an edge.
+   numpy); a z-buffer keeps the nearest surface per pixel, whatever the drawing order. Coverage
+   rule: a pixel belongs to a triangle when its centre is inside or on an edge.
 2. Shading, per pixel: barycentric (perspective-correct) interpolation of vertex normals and vertex
    colours, Lambert with a key light near the camera (a headlight), a fill light from the side, a
    little ambient and specular. Back faces (seen through the eye and mouth holes of an open face
