@@ -41,6 +41,8 @@ from usdface.distance import (GeodesicSolver, euclidean_distances, hybrid_distan
                               hybrid_weights)
 from usdface.distance import graph as G  # noqa: E402
 
+from procmem import reset_peak, status_mb  # noqa: E402  (benchmarks/procmem.py)
+
 MESH = REPO.parent / "shared" / "data" / "meshes" / "makehuman_hm08_face_cm.obj"
 
 
@@ -184,26 +186,6 @@ def rel_stats(a, ref):
             f"entries off by > 5 % of diameter: {100 * (np.abs(a - ref) > 0.05 * diam).mean():.2f} %")
 
 
-def vm_hwm_mb() -> float:
-    for line in open("/proc/self/status"):
-        if line.startswith("VmHWM:"):
-            return int(line.split()[1]) / 1024.0
-    return peak_mb()
-
-
-def reset_peak() -> float:
-    """Reset the peak-RSS mark (Linux clear_refs 5); returns the current RSS in MB."""
-    try:
-        with open("/proc/self/clear_refs", "w") as fh:
-            fh.write("5")
-    except OSError:
-        pass
-    for line in open("/proc/self/status"):
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024.0
-    return 0.0
-
-
 def window_stats(a, ref, lo, hi):
     """Relative error over the pairs a kernel reaches: lo < exact distance < hi."""
     m = (ref > lo) & (ref < hi) & np.isfinite(ref)
@@ -271,8 +253,8 @@ def main(argv=None):
             best_cpu = min(best_cpu, time.process_time() - c0)
         results[name] = best
         results[name + " cpu"] = best_cpu
-        print(f"  {name:44s} {best:8.2f} s wall {best_cpu:8.2f} s CPU   peak +{vm_hwm_mb() - base:6.0f} MB "
-              f"(RSS high-water {vm_hwm_mb():6.0f} MB)", flush=True)
+        print(f"  {name:44s} {best:8.2f} s wall {best_cpu:8.2f} s CPU   peak +{status_mb('VmHWM') - base:6.0f} MB "
+              f"(RSS high-water {status_mb('VmHWM'):6.0f} MB)", flush=True)
         return out
 
     # warm the numba kernels on the small mesh (compile / cache load is not the benchmark)
@@ -369,7 +351,7 @@ def main(argv=None):
             r = GeodesicSolver(pr, tr, backend=b).solve(rtri, rbary)
             el = time.perf_counter() - t0
             print(f"  {b:6s} {el:6.2f} s  {window_stats(r.vertex, ex.vertex, hr, 3 * width)[0]}")
-    print(f"\npeak RSS {vm_hwm_mb():.0f} MB (since the last reset); load average at end: {os.getloadavg()[0]:.2f}")
+    print(f"\npeak RSS {status_mb('VmHWM'):.0f} MB (since the last reset); load average at end: {os.getloadavg()[0]:.2f}")
 
 
 def numba_threads() -> int:

@@ -24,20 +24,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 SAMPLES = REPO / "sample_assets"
 
-
-def rss_mb(key: str) -> float:
-    for line in open("/proc/self/status"):
-        if line.startswith(key + ":"):
-            return int(line.split()[1]) / 1024.0
-    return float("nan")
-
-
-def reset_peak() -> None:
-    try:
-        with open("/proc/self/clear_refs", "w") as fh:
-            fh.write("5")
-    except OSError:
-        pass
+from procmem import reset_peak, status_mb  # noqa: E402  (benchmarks/procmem.py)
 
 
 def main() -> int:
@@ -80,12 +67,12 @@ def main() -> int:
 
         def wrapper(*a, **k):
             reset_peak()
-            before = rss_mb("VmRSS")
+            before = status_mb("VmRSS")
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 return fn(*a, **k)
             finally:
-                rows.append((name, time.perf_counter() - t0, time.process_time() - c0, before, rss_mb("VmHWM")))
+                rows.append((name, time.perf_counter() - t0, time.process_time() - c0, before, status_mb("VmHWM")))
                 print(f"  {name:15s} {rows[-1][1]:8.1f} s wall {rows[-1][2]:8.1f} s CPU   RSS before "
                       f"{before:7.0f} MB, peak {rows[-1][4]:7.0f} MB", flush=True)
         setattr(module, name, wrapper)

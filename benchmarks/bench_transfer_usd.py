@@ -38,6 +38,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 SHARED = REPO.parent / "shared" / "data"
+
+from procmem import status_mb  # noqa: E402  (benchmarks/procmem.py)
 SAMPLES = REPO / "sample_assets"
 CHUNK = 64
 
@@ -155,11 +157,7 @@ def baseline_writer(data: Path, output: Path, mesh_layer: Path) -> None:
 
 def peak_line() -> str:
     """This process's peak RSS: VmHWM (ru_maxrss would include the parent's peak before exec)."""
-    for line in open("/proc/self/status"):
-        if line.startswith("VmHWM:"):
-            return f"PEAK_RSS_MB {int(line.split()[1]) / 1024:.1f}"
-    import resource
-    return f"PEAK_RSS_MB {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.1f}"
+    return f"PEAK_RSS_MB {status_mb('VmHWM'):.1f}"
 
 
 def process_level(args, work: Path) -> dict:

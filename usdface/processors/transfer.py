@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import MarkerError, OptionError, list_names
 from ..progress import progress
 from ..rbf.stability import DEFAULT_MAX_AMPLIFICATION
+from ..rbf.transfer import check_chunk_frames
 from ..usd.layers import check_output_path, open_stage, provenance
 
 log = logging.getLogger("usdface")
@@ -175,8 +176,7 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, output, *, rb
     time-sampled transform of the face's root prim (:mod:`usdface.usd.motion`); False leaves the
     face head-stabilised.
     """
-    if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, (int, np.integer)) or chunk_frames < 1:
-        raise OptionError(f"chunk_frames: expected an integer >= 1; got {chunk_frames!r}")
+    chunk_frames = check_chunk_frames(chunk_frames)
     from ..capture.retarget import marker_displacements, mesh_head_motion
     from ..usd.analysis_layer import write_animation_layer
 

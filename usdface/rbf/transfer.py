@@ -97,6 +97,13 @@ _CHUNK_BYTES = 64 << 20  # default output chunk size of iter_chunks()
 _GEMM_TEMP_BYTES = 32 << 20  # GEMM temporary (a block of frames) in iter_chunks()
 
 
+def check_chunk_frames(value) -> int:
+    """``value`` as frames per chunk: an integer >= 1, else an :class:`OptionError` naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise OptionError(f"chunk_frames: expected an integer >= 1; got {value!r}")
+    return int(value)
+
+
 def _shape_error(name: str, expected: str, arr) -> InputError:
     return InputError(f"{name} must have shape {expected}; got {np.shape(arr)}")
 
@@ -754,14 +761,14 @@ class RBFTransfer:
             raise OptionError(f"dtype: expected float32 or float64; got {dtype}")
         if chunk_frames is None:
             chunk_frames = max(1, _CHUNK_BYTES // (self.n_vertices * 3 * dtype.itemsize))
-        elif isinstance(chunk_frames, bool) or not isinstance(chunk_frames, (int, np.integer)) or chunk_frames < 1:
-            raise OptionError(f"chunk_frames: expected an integer >= 1; got {chunk_frames!r}")
+        else:
+            chunk_frames = check_chunk_frames(chunk_frames)
         if blas_threads is not None and (
             isinstance(blas_threads, bool) or not isinstance(blas_threads, (int, np.integer)) or blas_threads < 1
         ):
             raise OptionError(f"blas_threads: expected an integer >= 1 or None; got {blas_threads!r}")
         self._ensure_fitted()
-        return disp, self._scan(disp), int(chunk_frames), dtype
+        return disp, self._scan(disp), chunk_frames, dtype
 
     def _generate(self, disp, scan, chunk_frames, dtype, blas_threads, out=None, n_buffers=0,
                   rhs=None, extents=False):
