@@ -21,7 +21,7 @@ commands live in :mod:`usdface.processors.tissue`.
 import importlib
 
 #: public name -> submodule; loaded on first use, so that the command line (which only needs the
-#: preset and integrator names) does not pay for the numba kernels at start-up
+#: preset names) does not pay for the simulator and its numba kernels at start-up
 _EXPORTS = {
     "PRESET_NAMES": "expressions", "PRESETS": "expressions", "Timeline": "expressions",
     "expression_timeline": "expressions", "preset_contractions": "expressions", "read_timeline": "expressions",
