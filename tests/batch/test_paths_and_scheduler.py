@@ -178,3 +178,59 @@ def test_batch_pointed_at_a_web_server_fails_within_10_s(tmp_path):
     startup = time.perf_counter() - t0
     assert seconds - startup < PROBE_TIMEOUT + 4.0, (seconds, startup)  # slack for a loaded machine
     assert not (tmp_path / "o").exists()
+
+
+# -- the batch never writes over what it reads (issue 20, case 1: data loss) ----------------------
+
+def _digests(*paths):
+    import hashlib
+
+    return {str(p): hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in paths}
+
+
+@pytest.mark.parametrize("target", ["manifest", "layout", "mesh"])
+def test_manifest_summary_never_replaces_the_manifest_or_an_input(tmp_path, target, capsys):
+    from usdface.cli import main
+
+    layout = tmp_path / "face.layout.json"
+    layout.write_bytes((SA / "layouts" / "makehuman_hm08_face.layout.json").read_bytes())
+    mesh = tmp_path / "face.obj"
+    mesh.write_bytes((SA / "meshes" / "makehuman_hm08_face_cm.obj").read_bytes())
+    name = {"manifest": "shots.toml", "layout": "face.layout.json", "mesh": "face.obj"}[target]
+    m = _manifest(tmp_path, [_shot(output="out/{capture}", layout=layout, mesh=mesh)],
+                  batch=f'summary = "{name}"', defaults="trim = [0, 20]")
+    before = _digests(m, layout, mesh)
+    code = main(["batch", str(m), "--workers", "0"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and f"summary {tmp_path / name}" in err[0] and "would overwrite the input" in err[0]
+    assert _digests(m, layout, mesh) == before
+    assert not (tmp_path / "out").exists()  # refused before any work
+
+
+def test_command_line_summary_and_report_never_replace_a_shots_input(tmp_path, capsys):
+    from usdface.cli import main
+
+    layout = tmp_path / "face.layout.json"
+    layout.write_bytes((SA / "layouts" / "makehuman_hm08_face.layout.json").read_bytes())
+    m = _manifest(tmp_path, [_shot(output="out/{capture}", layout=layout)], defaults="trim = [0, 20]")
+    before = _digests(m, layout)
+    assert main(["batch", str(m), "--workers", "0", "--summary", str(layout)]) == 2
+    assert "--summary" in capsys.readouterr().err
+    assert main(["batch", str(m), "--workers", "0", "--report", str(layout)]) == 2
+    err = capsys.readouterr().err
+    assert "--report" in err and "would overwrite the input" in err
+    assert _digests(m, layout) == before
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_shot_never_writes_over_another_shots_input(tmp_path):
+    # shot 2 reads a layout kept inside the folder shot 1 writes (as a file run would write)
+    out1 = tmp_path / "out" / "JawMoCap"
+    out1.mkdir(parents=True)
+    layout = out1 / "summary.json"
+    layout.write_bytes((SA / "layouts" / "makehuman_hm08_face.layout.json").read_bytes())
+    m = _manifest(tmp_path, [_shot(output="out/{capture}"), _shot(capture="NoseMoCap", output="out/{capture}",
+                                                                  layout=layout)])
+    with pytest.raises(InputError, match=r"would overwrite the input .*summary.json \(layout of shot "):
+        load_manifest(m)

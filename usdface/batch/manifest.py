@@ -250,9 +250,11 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
     if clashes:
         raise InputError(f"manifest {path}: shots share an output folder (name outputs with {{mesh}} and "
                          "{capture}):\n  " + "\n  ".join(clashes))
-    overwrites = _inputs_overwritten(shots)
+    overwrites = _inputs_overwritten(shots, path)
     if overwrites:
         raise InputError(f"manifest {path}: a shot would overwrite its own inputs:\n  " + "\n  ".join(overwrites))
+    # the summary and the cache never replace what any shot (or the batch) reads
+    check_batch_outputs(path, shots, {"summary": summary_path, "cache": cache_path})
     unwritable = _unwritable([s.output for s in shots])
     if cache_path:
         unwritable += _unwritable([cache_path], what="cache folder")
@@ -350,20 +352,57 @@ def _clashes(shots, cache_path, summary_path) -> list[str]:
     return clashes
 
 
-def _inputs_overwritten(shots) -> list[str]:
-    """Shots whose output files (what `usdface run` writes into their folder) are their inputs."""
+def shot_inputs(shot: Shot) -> dict:
+    """{label: path} of the files a shot reads (mesh, capture, layout, seeds, a stiffness JSON)."""
+    stiffness = shot.options.get("stiffness")
+    return {"mesh": shot.mesh, "capture": shot.capture, "layout": shot.layout, "seeds": shot.options.get("seeds"),
+            "stiffness": stiffness if isinstance(stiffness, str) and os.path.isfile(stiffness) else None}
+
+
+def _inputs_overwritten(shots, manifest_path) -> list[str]:
+    """Shots whose output files (what `usdface run` writes into their folder) are an input of any
+    shot of the batch, or the manifest."""
     from ..fileutil import same_file_problems
     from ..processors.run import is_video, output_files
 
+    inputs = batch_inputs(manifest_path, shots)
     found = []
     for s in shots:
         files = output_files(s.options.get("output_kind") or ("points",), video=is_video(s.capture))
-        stiffness = s.options.get("stiffness")
-        inputs = {"mesh": s.mesh, "capture": s.capture, "layout": s.layout, "seeds": s.options.get("seeds"),
-                  "stiffness": stiffness if isinstance(stiffness, str) and os.path.isfile(stiffness) else None}
         outputs = [("output", Path(s.output))] + [("output", Path(s.output) / f) for f in files]
         found += [f"{s.name}: {p}" for p in same_file_problems(outputs, inputs)]
     return found
+
+
+def batch_inputs(manifest_path, shots) -> dict:
+    """Every file a batch reads: the manifest itself and each shot's inputs, with the files its USD
+    inputs compose; ``{label: [paths]}``."""
+    from ..usd.layers import composed_files
+
+    inputs: dict = {"the manifest": [str(manifest_path)]}
+    for s in shots:
+        for role, path in shot_inputs(s).items():
+            if path is None:
+                continue
+            label = f"{role} of shot {s.name}"
+            inputs.setdefault(label, []).append(path)
+            for dep in composed_files(path):
+                inputs.setdefault(f"a file composed by {label}", []).append(dep)
+    return inputs
+
+
+def check_batch_outputs(manifest_path, shots, outputs: dict) -> None:
+    """Refuse (InputError, before any work) a batch file (summary, report, cache folder) that is
+    any input of any shot or the manifest itself: the batch would replace what its shots read.
+
+    ``outputs``: ``{label: path}`` (``None`` skipped), e.g. ``{"summary": ..., "report": ...}``.
+    """
+    from ..fileutil import same_file_problems
+
+    problems = same_file_problems({k: v for k, v in outputs.items() if v is not None},
+                                  batch_inputs(manifest_path, shots))
+    if problems:
+        raise InputError(f"manifest {manifest_path}: " + "; ".join(problems))
 
 
 def _expand(pattern, base: Path, what: str, label: str, missing: list) -> list[str]:

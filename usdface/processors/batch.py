@@ -23,6 +23,15 @@ def batch(manifest, *, workers=None, scheduler=None, resume=False, force=False, 
     if workers is not None and scheduler:
         raise OptionError("--workers sizes the local cluster; with --scheduler the farm's workers run the shots")
     m = load_manifest(manifest, out_root=out_root)
+    from pathlib import Path
+
+    from ..batch.manifest import check_batch_outputs
+
+    summary_file = summary or m.summary
+    report_file = None if report in (None, False) else Path(summary_file).with_suffix(".html") if report is True \
+        else report
+    # --summary and --report never replace the manifest or what a shot reads (before any work)
+    check_batch_outputs(m.path, m.shots, {"--summary": summary, "--report": report_file})
     if report not in (None, False, True):
         from .report import _check_output
 
