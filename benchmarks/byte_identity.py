@@ -1,0 +1,193 @@
+"""Byte identity of the user's outputs between two versions of usdface.
+
+Runs the same commands with two trees of usdface (a git revision, checked out into a temporary
+folder with ``git archive``, and this working tree by default) on the same inputs, writing to the
+same output paths (so paths inside the files agree), and compares every file written, byte for
+byte. Where bytes differ, only the fields listed in ``ALLOWED`` may differ: JSON files are compared
+without them, USD layers as text (``Sdf.Layer.ExportToString``) without them; anything else is a
+difference::
+
+    python benchmarks/byte_identity.py --before 9e2e68a            # 0.2.0 against this tree
+    python benchmarks/byte_identity.py --before 9e2e68a --jobs main solve
+
+Jobs (the README's commands): ``main`` (the main job), ``all`` (``run --output-kind all``),
+``batch`` (the batch example, serial), ``solve`` (``solve --csv --livelink``), ``playblast`` (of
+the main job's shot). Exit 0 when every file agrees.
+"""
+from __future__ import annotations
+
+import argparse
+import difflib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parents[1]
+
+#: fields allowed to differ, and why. Keys are matched anywhere in a JSON document (a summary) and
+#: in the provenance JSON that USD layers carry in customLayerData.
+ALLOWED = {
+    "seconds": "wall time of a step or run",
+    "computeSeconds": "wall time",
+    "hybridSeconds": "wall time",
+    "started": "the batch's start time",
+    "host": "the Dask worker's address",
+    "scheduler": "the Dask scheduler's address",
+    "dashboard": "the Dask dashboard's address",
+    "usdfaceVersion": "the version number (only if it was bumped)",
+}
+
+
+def jobs(sa: Path, out: Path) -> dict[str, list[list[str]]]:
+    """{job: [usdface argv, ...]}: the README's commands on the sample assets ``sa``, into ``out``."""
+    mesh = str(sa / "meshes" / "makehuman_hm08_face_cm.obj")
+    layout = str(sa / "layouts" / "makehuman_hm08_face.layout.json")
+    jaw = str(sa / "capture" / "JawMoCap.ma")
+    shapes = str(sa / "meshes" / "makehuman_hm08_face_units_cm.npz")
+    return {
+        "main": [["run", "--mesh", mesh, "--capture", jaw, "--layout", layout, "-o", str(out / "jaw")]],
+        "all": [["run", "--mesh", mesh, "--capture", jaw, "--layout", layout, "--shapes", shapes,
+                 "--output-kind", "all", "-o", str(out / "jaw_all")]],
+        "batch": [["batch", str(sa / "batch" / "example.toml"), "--workers", "0"]],
+        "solve": [["solve", "--mesh", mesh, "--shapes", shapes, "--capture", jaw, "--layout", layout,
+                   "-o", str(out / "curves.usdc"), "--csv", str(out / "curves.csv"),
+                   "--livelink", str(out / "curves_livelink.csv")]],
+        "playblast": [["run", "--mesh", mesh, "--capture", jaw, "--layout", layout, "-o", str(out / "pb")],
+                      ["playblast", str(out / "pb" / "shot.usda"), "-o", str(out / "jaw.mp4"), "--size", "960x540"]],
+    }
+
+
+def checkout(rev: str, where: Path) -> Path:
+    """The tree of git revision ``rev`` in ``where`` (no .git)."""
+    where.mkdir(parents=True, exist_ok=True)
+    archive = subprocess.run(["git", "-C", str(HERE), "archive", rev], check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(where)], input=archive, check=True)
+    return where
+
+
+def run_tree(tree: Path, job: str, work: Path) -> tuple[float, list[str]]:
+    """Run ``job`` with ``tree``'s usdface; outputs land in work/run (sample assets copied to
+    work/sa, so the batch writes beside its manifest as the README's does). Returns (seconds,
+    stderr lines of failures)."""
+    sa = work / "sa"
+    if sa.exists():
+        shutil.rmtree(sa)
+    shutil.copytree(HERE / "sample_assets", sa)
+    out = work / "run"
+    out.mkdir(parents=True)
+    env = dict(os.environ, PYTHONPATH=str(tree), PYTHONHASHSEED="0")
+    errors = []
+    t0 = time.perf_counter()
+    for argv in jobs(sa, out)[job]:
+        proc = subprocess.run([sys.executable, "-m", "usdface", *argv, "-q"], env=env, capture_output=True,
+                              text=True)
+        if proc.returncode != 0:
+            errors.append(f"{' '.join(argv[:1])} exited {proc.returncode}: {proc.stderr.strip()[-400:]}")
+    return time.perf_counter() - t0, errors
+
+
+def _drop(doc, allowed):
+    if isinstance(doc, dict):
+        return {k: _drop(v, allowed) for k, v in doc.items() if k not in allowed}
+    if isinstance(doc, list):
+        return [_drop(v, allowed) for v in doc]
+    return doc
+
+
+def _json_text(text: str) -> str | None:
+    try:
+        return json.dumps(_drop(json.loads(text), ALLOWED), sort_keys=True, indent=1)
+    except ValueError:
+        return None
+
+
+_PROV = re.compile(r'("?(?:provenance|usdface:provenance)"?\s*=\s*)(".*?(?<!\\)")', re.S)
+
+
+def _usd_text(path: Path) -> str:
+    from pxr import Sdf
+
+    text = Sdf.Layer.OpenAsAnonymous(str(path)).ExportToString()
+    # provenance is JSON inside a string: compare it without the allowed fields
+    for key in ALLOWED:
+        text = re.sub(rf'(\\"{key}\\": )(\\"[^\\]*\\"|[0-9.eE+-]+)', r"\1<allowed>", text)
+    return text
+
+
+def compare(before: Path, after: Path) -> tuple[list[str], list[str]]:
+    """(differences, files compared) between two output folders."""
+    names_b = {p.relative_to(before) for p in before.rglob("*") if p.is_file()}
+    names_a = {p.relative_to(after) for p in after.rglob("*") if p.is_file()}
+    diffs = [f"only before: {n}" for n in sorted(names_b - names_a)] + \
+            [f"only after: {n}" for n in sorted(names_a - names_b)]
+    for name in sorted(names_b & names_a):
+        b, a = (before / name).read_bytes(), (after / name).read_bytes()
+        if a == b:
+            continue
+        if name.suffix == ".json":
+            tb, ta = _json_text(b.decode()), _json_text(a.decode())
+        elif name.suffix in (".usda", ".usdc", ".usd"):
+            tb, ta = _usd_text(before / name), _usd_text(after / name)
+        else:
+            tb = ta = None
+        if tb is not None and tb == ta:
+            continue
+        detail = ""
+        if tb is not None and ta is not None:
+            lines = list(difflib.unified_diff(tb.splitlines(), ta.splitlines(), lineterm="", n=0))[2:8]
+            detail = " | ".join(line.strip()[:160] for line in lines)
+        diffs.append(f"differs: {name} {detail}")
+    return diffs, sorted(str(n) for n in names_b & names_a)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--before", required=True, help="git revision of the starting point (e.g. 9e2e68a)")
+    ap.add_argument("--after", default=None, help="git revision to compare (default: this working tree)")
+    ap.add_argument("--jobs", nargs="+", default=["main", "all", "batch", "solve", "playblast"],
+                    choices=["main", "all", "batch", "solve", "playblast"])
+    ap.add_argument("--keep", help="keep the outputs in this folder")
+    args = ap.parse_args(argv)
+    root = Path(args.keep or tempfile.mkdtemp(prefix="usdface-byteid-"))
+    trees = {"before": checkout(args.before, root / "tree-before")}
+    trees["after"] = checkout(args.after, root / "tree-after") if args.after else HERE
+    print(f"before: {args.before}  after: {args.after or 'working tree ' + str(HERE)}")
+    print("fields allowed to differ: " + "; ".join(f"{k} ({v})" for k, v in ALLOWED.items()))
+    failed = False
+    for job in args.jobs:
+        work = root / "work"
+        results = {}
+        for side in ("before", "after"):
+            if work.exists():
+                shutil.rmtree(work)
+            seconds, errors = run_tree(trees[side], job, work)
+            if errors:
+                print(f"{job}: {side} failed: {'; '.join(errors)}")
+                failed = True
+            dest = root / side / job
+            if dest.exists():
+                shutil.rmtree(dest)
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            shutil.move(str(work / "run"), dest)
+            if (work / "sa" / "batch" / "out").exists():  # the batch writes beside its manifest
+                shutil.move(str(work / "sa" / "batch" / "out"), dest / "batch-out")
+            results[side] = seconds
+        diffs, files = compare(root / "before" / job, root / "after" / job)
+        failed |= bool(diffs)
+        print(f"{job}: {len(files)} files, {'identical' if not diffs else f'{len(diffs)} difference(s)'} "
+              f"(before {results['before']:.1f} s, after {results['after']:.1f} s)")
+        for d in diffs:
+            print(f"  {d}")
+    if not args.keep:
+        shutil.rmtree(root, ignore_errors=True)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
