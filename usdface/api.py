@@ -1,36 +1,39 @@
-"""usdface's Python API: the stage processors for pipeline scripts and a DCC's Python.
+"""usdface's Python API: every command of the `usdface` tool as a function of the same name.
 
-Every processor of the command line is here, taking the same options objects
-(:mod:`usdface.options`) and working on in-memory stages and layers as well as on files:
+``usdface import-capture`` is :func:`import_capture`, ``usdface landmarks train`` is
+:func:`landmarks_train`, ``usdface plugin-path`` is :func:`plugin_path`; a processor another
+package registers (:mod:`usdface.registry`) appears here too. Each function takes
 
-- inputs may be a file path, an ``Sdf.Layer`` or a ``Usd.Stage`` (a DCC's open scene, or a stage
-  composing the mesh, the capture and what earlier steps authored);
-- the output is authored into ``into``: an ``Sdf.Layer``, or a ``Usd.Stage`` (its edit target's
-  layer). By default a new anonymous layer is made. Nothing touches the disk unless you pass a
-  file path as ``into``;
-- the processor's opinions are merged into ``into`` only when it succeeds: an error raises a
-  :class:`~usdface.UsdFaceError` (naming the prim, marker or option at fault) and leaves ``into``
-  exactly as it was.
+- the command's inputs, positionally in the command's order or by name: where the command reads
+  USD, a file path, an ``Sdf.Layer`` or a ``Usd.Stage`` (a DCC's open scene, or a stage composing
+  the mesh, the capture and what earlier steps authored); a later USD input defaults to the first
+  one (``api.transfer(stage)``: one stage holds mesh, capture, binding and analysis);
+- ``options``: the command's options object (:mod:`usdface.options`, e.g. :class:`TransferOptions`),
+  a dict of its fields, or an object sharing fields with it (a :class:`RunOptions`);
+- its outputs by name (``output=`` a path, ``csv=``, ``preview=``...). A USD output may instead be
+  authored in memory: ``into=`` an ``Sdf.Layer`` or a ``Usd.Stage`` (its edit target's layer);
+  with neither, a new anonymous layer. Nothing touches the disk unless you pass a path.
 
-Each call returns a :class:`Result`: the layer written (``.layer``) and the processor's summary
-(``.summary``, the same dict ``usdface COMMAND --json`` prints).
+and returns a :class:`Result`: ``.layers`` (the layers written: in-memory layers, or file paths),
+``.files`` (other files), ``.summary`` (what ``usdface COMMAND --json`` prints), ``.text`` (what it
+prints) and ``.exit_code``. A processor's opinions are merged into ``into`` only when it succeeds:
+an error raises :class:`UsdFaceError` (naming the prim, marker, file or option at fault) and leaves
+``into`` exactly as it was. A wrong type or an unknown option raises :class:`OptionError` naming it.
 
-Example — the main job in memory, then on files::
+Example — the main job in memory, then on files (``out`` is a folder of your choice)::
 
-    import usdface
-    from pxr import Usd
     from usdface import api
-    from usdface.options import CaptureOptions, DistanceOptions, TransferOptions, RunOptions
+    from usdface.options import CaptureOptions, DistanceOptions, RunOptions
 
     mesh = api.import_mesh("sample_assets/meshes/makehuman_hm08_face_cm.obj").layer
-    capture = api.import_capture("sample_assets/capture/JawMoCap.ma", CaptureOptions(stabilize="auto",
-                                                                                    trim=(0, 300))).layer
-    stage = api.new_stage(mesh)          # in memory; the mesh's units, up axis and default prim
-    api.bind(stage, capture, layout="sample_assets/layouts/makehuman_hm08_face.layout.json", into=stage)
-    api.distances(stage, DistanceOptions(method="hybrid"), into=stage)
-    anim = api.transfer(stage, TransferOptions(), into=stage).summary   # points authored into the stage
+    capture = api.import_capture("sample_assets/capture/JawMoCap.ma",
+                                 CaptureOptions(stabilize="auto", trim=(0, 300))).layer
+    stage = api.new_stage(mesh)                  # in memory: the mesh's units, up axis, default prim
+    api.bind(stage, capture, {"layout": "sample_assets/layouts/makehuman_hm08_face.layout.json"}, into=stage)
+    api.distances(stage, options=DistanceOptions(method="hybrid"), into=stage)
+    anim = api.transfer(stage, into=stage)       # points authored into the stage's edit target
 
-    api.run("face.obj", "take.ma", "out/jaw", RunOptions(layout="face.layout.json"))   # files, as `usdface run`
+    api.run("face.obj", "take.ma", RunOptions(layout="face.layout.json"), output=f"{out}/jaw")
 
 Inside a DCC: usdface needs usd-core's ``pxr`` or a DCC's own USD build of a compatible version,
 with usdface's schemas registered before the first stage is opened (``PXR_PLUGINPATH_NAME`` set
@@ -38,52 +41,33 @@ to ``usdface plugin-path``; see the README's DCC section for what works in Blend
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import inspect
+import os
+import warnings
 
-from .errors import OptionError, UsdFaceError
-from .options import (BindOptions, CaptureOptions, DistanceOptions, PlayblastOptions, RunOptions, SkelOptions,
-                      SolveOptions, TransferOptions)
+from . import registry
+from .errors import OptionError
+from .options import (Options)
+from .registry import Result
 
-__all__ = ["Result", "new_stage", "import_mesh", "import_capture", "bind", "distances", "transfer", "skel",
-           "solve", "run", "evaluator", "playblast", "report", "check", "UsdFaceError", "CaptureOptions",
-           "BindOptions", "DistanceOptions", "TransferOptions", "SkelOptions", "SolveOptions", "RunOptions",
-           "PlayblastOptions"]
+#: what this module exports besides one function per command (tested: ``__all__`` is these and
+#: the commands, nothing else)
+OTHER_EXPORTS = ("Result", "UsdFaceError", "OptionError", "new_stage", "evaluator", "CaptureOptions", "BindOptions",
+                 "DistanceOptions", "TransferOptions", "SkelOptions", "SolveOptions", "RunOptions", "PlayblastOptions")
 
-
-@dataclass
-class Result:
-    """What a processor wrote: the layer (or file path) and its summary dict."""
-
-    layer: object
-    summary: dict = field(repr=False)
-
-
-def _into(into, name: str):
-    """The target: a new anonymous layer by default; a path, layer or stage as given."""
-    if into is None:
-        from pxr import Sdf
-
-        return Sdf.Layer.CreateAnonymous(f"{name}.usda")
-    return into
-
-
-def _result(target, summary: dict) -> Result:
-    from .usd.layers import is_in_memory, target_layer
-
-    layer = target_layer(target) if is_in_memory(target) else target
-    return Result(layer, {k: v for k, v in summary.items() if not k.startswith("_")})
-
-
-def _options(options, cls):
-    if options is None:
-        return cls()
-    if isinstance(options, cls):
-        return options
-    if isinstance(options, RunOptions):
-        return options.group(cls)
-    if isinstance(options, dict):
-        return cls.from_mapping(options, what=cls.__name__)
-    raise OptionError(f"options: expected a {cls.__name__} (usdface.options); got {type(options).__name__}")
+#: keywords of usdface 0.2's API functions that are options now: {function: {keyword: option field}}
+_LEGACY_KEYWORDS = {
+    "import_mesh": {"units": "units", "up_axis": "up_axis"},
+    "bind": {"layout": "layout", "auto": "auto"},
+    "transfer": {"method": "method", "head_motion": "head_motion"},
+    "skel": {"method": "method", "head_motion": "head_motion", "transfer_options": None},
+    "report": {"playblast": None},
+}
+#: keywords of usdface 0.2 renamed: {function: {old: new}}
+_LEGACY_NAMES = {"import_capture": {"source": "source"}, "solve": {"livelink": "livelink"},
+                 "run": {"out_dir": "output", "cache": "cache"}}
+#: usdface 0.2 returned a dict (the summary) or a list (check's findings) from these
+_LEGACY_RETURNS = ("run", "solve", "playblast", "report")  # (check sets its findings itself)
 
 
 def new_stage(*layers):
@@ -94,104 +78,6 @@ def new_stage(*layers):
     from .usd.layers import new_stage as make
 
     return make(layers)
-
-
-def import_mesh(source, *, units: str | None = None, up_axis: str = "Y", into=None) -> Result:
-    """A mesh (OBJ/PLY/STL/OFF file, USD file, layer or stage) as a mesh layer: ``/Face/Geom`` with
-    its hole regions (outer border, mouth, eyes)."""
-    from .processors.import_mesh import import_mesh as run_import
-
-    target = _into(into, "mesh")
-    return _result(target, run_import(source, target, units=units, up_axis=up_axis))
-
-
-def import_capture(source, options: CaptureOptions | None = None, *, into=None) -> Result:
-    """A capture (Maya ASCII, C3D, TRC, CSV file, or a capture layer / stage) as a capture layer
-    (``/Capture/Markers``), conditioned as ``options`` say (stabilise, fill gaps, trim...)."""
-    from .processors.import_capture import import_capture as run_import
-
-    target = _into(into, "capture")
-    return _result(target, run_import(source, target, **_options(options, CaptureOptions).to_dict()))
-
-
-def bind(stage, capture=None, *, layout=None, auto: bool = False, options: BindOptions | None = None,
-         into=None) -> Result:
-    """Bind the capture's markers to the face in ``stage`` (from a marker layout JSON, or
-    ``auto``); ``capture`` defaults to ``stage`` itself (a scene holding both)."""
-    from .processors.bind import bind as run_bind
-
-    target = _into(into, "binding")
-    return _result(target, run_bind(stage, stage if capture is None else capture, target, layout=layout,
-                                    auto=auto, **_options(options, BindOptions).to_dict()))
-
-
-def distances(stage, options: DistanceOptions | None = None, *, binding=None, into=None) -> Result:
-    """Distance matrices (Euclidean / geodesic / hybrid) of the face in ``stage`` to its bound
-    markers; ``binding`` defaults to ``stage`` (where `bind` authored)."""
-    from .processors.distances import distances as run_distances
-
-    o = _options(options, DistanceOptions)
-    target = _into(into, "analysis")
-    return _result(target, run_distances(stage, stage if binding is None else binding, target, method=o.method,
-                                         backend=o.backend, region_radius_cm=o.region_radius, sigma_cm=o.sigma,
-                                         threshold=o.threshold, pin_border=o.pin_border, components=o.components))
-
-
-def transfer(stage, options: TransferOptions | None = None, *, capture=None, binding=None, analysis=None,
-             method: str | None = None, head_motion: bool = True, into=None) -> Result:
-    """RBF transfer of the capture's marker motion to every vertex: time-sampled points (and the
-    head motion on the face's root prim). ``capture``, ``binding`` and ``analysis`` default to
-    ``stage``; ``method`` picks a distance matrix when the analysis holds several."""
-    from .processors.transfer import transfer as run_transfer
-
-    target = _into(into, "anim")
-    return _result(target, run_transfer(stage, stage if capture is None else capture,
-                                        stage if binding is None else binding,
-                                        stage if analysis is None else analysis, target, method=method,
-                                        head_motion=head_motion, **_options(options, TransferOptions).to_dict()))
-
-
-def skel(stage, options: SkelOptions | None = None, *, transfer_options: TransferOptions | None = None,
-         capture=None, binding=None, analysis=None, method: str | None = None, head_motion: bool = True,
-         into=None) -> Result:
-    """UsdSkel keyframes reproducing the transfer: a skeleton with a joint per marker, DCC-safe skin
-    weights (``options``: :class:`usdface.options.SkelOptions`), corrective shapes and the head
-    motion on the SkelRoot. ``capture``, ``binding`` and ``analysis`` default to ``stage``. The
-    UsdSkel check of the written layer (`usdface skel`'s) needs the mesh composed with it, so it
-    runs here only when ``into`` is a file path."""
-    from .processors.skel import skel as run_skel
-    from .usd.layers import is_in_memory
-
-    target = _into(into, "skel")
-    o = _options(options, SkelOptions)
-    return _result(target, run_skel(stage, stage if capture is None else capture, stage if binding is None else binding,
-                                    stage if analysis is None else analysis, target, method=method,
-                                    head_motion=head_motion, verify=not is_in_memory(target), **o.to_dict(),
-                                    **_options(transfer_options, TransferOptions).to_dict()))
-
-
-def solve(mesh, capture, output, options: RunOptions | dict | None = None, *, csv=None, livelink=None,
-          corrective=None) -> dict:
-    """Blend-shape weight curves on a rig, on files, exactly as `usdface solve` (``options``: the
-    capture, binding and solve fields of :class:`usdface.options.RunOptions`; ``mesh`` a USD mesh
-    with blend shapes, or a neutral with ``options.shapes``). Returns the summary."""
-    from .processors.solve import solve as run_solve
-
-    o = options if isinstance(options, RunOptions) else RunOptions() if options is None else \
-        RunOptions.from_mapping(options, what="solve options")
-    summary = run_solve(mesh, capture, output, shapes=o.shapes, layout=o.layout, auto=bool(o.auto), csv=csv,
-                        livelink=livelink, livelink_fill_zeros=o.livelink_fill_zeros, corrective=corrective,
-                        fps=o.fps, key_tolerance=o.key_tolerance, head_motion=o.head_motion, retarget=o.retarget,
-                        mesh_units=o.mesh_units, **o.group(CaptureOptions).to_dict(), **o.solver_kwargs())
-    return {k: v for k, v in summary.items() if not k.startswith("_")}
-
-
-def run(mesh, capture, out_dir, options: RunOptions | dict | None = None, *, cache=None) -> dict:
-    """The main job on files, exactly as `usdface run` (returns its summary)."""
-    from .processors.run import run as run_job
-
-    summary = run_job(mesh, capture, out_dir, options, cache=cache)
-    return {k: v for k, v in summary.items() if not k.startswith("_")}
 
 
 def evaluator(source, *, mesh: str | None = None):
@@ -209,26 +95,197 @@ def evaluator(source, *, mesh: str | None = None):
     return FaceEvaluator(open_stage(source, what="file"), mesh=mesh, source=describe(source))
 
 
-def playblast(shot, output, options=None) -> dict:
-    """Render a shot (file) frame by frame into an H.264 movie, exactly as `usdface playblast`;
-    ``options`` is a :class:`usdface.options.PlayblastOptions` (or a dict of its fields).
-    Needs the ``media`` extra."""
-    from .processors.playblast import playblast as render
+# -- one function per command ----------------------------------------------------------------------
 
-    return {k: v for k, v in render(shot, output, options).items() if not k.startswith("_")}
-
-
-def report(outdir, output, *, playblast: bool | str = True) -> dict:
-    """The offline HTML QC report of a run's folder, exactly as `usdface report` (``playblast``:
-    render one, link an existing movie by path, or False for none)."""
-    from .processors.report import report as build
-
-    return {k: v for k, v in build(outdir, output, playblast=playblast).items() if not k.startswith("_")}
+def _options(processor, value):
+    cls = processor.options
+    if value is None:
+        return cls()
+    if isinstance(value, dict):
+        return cls.from_mapping(value, what=f"{processor.api_name} options")
+    if isinstance(value, Options):
+        return cls.from_other(value)
+    raise OptionError(f"{processor.api_name}: options: expected a {cls.__name__} (usdface.options) or a dict of its "
+                      f"fields; got {type(value).__name__}")
 
 
-def check(target) -> list:
-    """USD's validators and usdface's schema rules on a file, layer or stage; the findings
-    (``severity``, ``code``, ``message``...) — errors have ``severity == "error"``."""
-    from .usd.validation import check_layer
+def _check_input(processor, name: str, value) -> None:
+    from .usd.layers import is_in_memory
 
-    return check_layer(target)
+    i = processor.input(name)
+    ok = isinstance(value, (str, os.PathLike)) or (i.kind == "usd" and is_in_memory(value)) or \
+        (i.kind == "files" and isinstance(value, (list, tuple)) and all(isinstance(v, (str, os.PathLike))
+                                                                        for v in value))
+    if not ok:
+        what = {"usd": "a file path, an Sdf.Layer or a Usd.Stage", "files": "a list of file paths"}.get(
+            i.kind, "a file path")
+        raise OptionError(f"{processor.api_name}: {name}: expected {what}; got {type(value).__name__}")
+
+
+def _legacy(processor, args: list, kwargs: dict) -> tuple[list, dict]:
+    """usdface 0.2's calls (options where an input goes now, old keywords): mapped, with a
+    DeprecationWarning, for one minor version."""
+    name = processor.api_name
+    notes = []
+    n_in = len(processor.inputs)
+    for k, v in enumerate(args[:n_in]):
+        if isinstance(v, (Options, dict)) and "options" not in kwargs:
+            kwargs["options"] = v
+            args = args[:k] + [None] * (n_in - k) + args[k + 1:n_in]
+            notes.append("options as a positional argument after the first input")
+            break
+    if len(args) > n_in and not isinstance(args[n_in], (Options, dict, type(None))):
+        path_outputs = [o.name for o in processor.outputs if o.required]
+        if path_outputs:
+            kwargs.setdefault(path_outputs[0], args.pop(n_in))
+            notes.append(f"the output as a positional argument (give {path_outputs[0]}=)")
+    for old, new in _LEGACY_NAMES.get(name, {}).items():
+        if old in kwargs and old != new:
+            kwargs[new] = kwargs.pop(old)
+            notes.append(f"{old}= (now {new}=)")
+    moved = {k: kwargs.pop(k) for k in list(kwargs) if k in _LEGACY_KEYWORDS.get(name, {})}
+    if moved:
+        notes.append(", ".join(f"{k}=" for k in moved) + " (now fields of the options)")
+        opts = _options(processor, kwargs.pop("options", None) if "options" in kwargs else None)
+        changes = {}
+        for k, v in moved.items():
+            field = _LEGACY_KEYWORDS[name][k]
+            if field is not None:
+                changes[field] = v
+            elif k == "transfer_options" and v is not None:
+                changes.update({f: getattr(v, f) for f in v.to_dict() if hasattr(opts, f)})
+            elif k == "playblast":
+                changes.update({"no_playblast": True} if v is False else {} if v is True else {"playblast": str(v)})
+        kwargs["options"] = opts.replace(**changes)
+    if notes:
+        warnings.warn(f"usdface.api.{name}: " + "; ".join(notes) + " is deprecated since usdface 0.3 and goes in "
+                      f"0.4; call {name}({', '.join(i.name for i in processor.inputs)}, options=..., "
+                      f"{', '.join(o.name + '=...' for o in processor.outputs)})", DeprecationWarning, stacklevel=4)
+    return args, kwargs
+
+
+def _call(processor, args, kwargs) -> Result:
+    """Bind, check and default the arguments, run the processor, return its Result."""
+    from .usd.layers import is_in_memory, new_anonymous_layer, target_layer
+
+    args, kwargs = _legacy(processor, list(args), dict(kwargs))
+    names = [i.name for i in processor.inputs]
+    if len(args) > len(names) + 1:
+        raise OptionError(f"{processor.api_name}: takes {len(names)} input(s) ({', '.join(names)}) and options; "
+                          f"got {len(args)} positional arguments")
+    values = dict(zip(names + ["options"], args))
+    for k, v in kwargs.items():
+        if k in values and values[k] is not None:
+            raise OptionError(f"{processor.api_name}: {k} given twice")
+        values[k] = v
+    extra = {o.name for o in processor.outputs}
+    if any(o.kind == "usd" for o in processor.outputs):
+        extra.add("into")
+    if processor.name == "run":
+        extra.add("cache")  # usdface 0.2's api.run(..., cache=): a batch's content cache
+    unknown = [k for k in values if k not in names and k != "options" and k not in extra]
+    if unknown:
+        fields = ", ".join(f.name for f in processor.options.__dataclass_fields__.values())
+        raise OptionError(f"{processor.api_name}: unknown argument {unknown[0]!r}; options go in "
+                          f"options={processor.options.__name__}(...)" + (f" ({fields})" if fields else ""))
+    options = _options(processor, values.pop("options", None))
+    inputs = []
+    for i in processor.inputs:
+        v = values.pop(i.name, None)
+        if v is None and i.default_from is not None:
+            v = dict(zip(names, inputs)).get(i.default_from)
+        if v is None and i.required:
+            raise OptionError(f"{processor.api_name}: {i.name}: missing (the {i.help})")
+        if v is not None:
+            _check_input(processor, i.name, v)
+        inputs.append(v)
+    into = values.pop("into", None)
+    outputs = {k: v for k, v in values.items() if v is not None}
+    usd_out = next((o for o in processor.outputs if o.kind == "usd"), None)
+    if into is not None:
+        if usd_out is None or not is_in_memory(into):
+            raise OptionError(f"{processor.api_name}: into: expected an Sdf.Layer or a Usd.Stage to author into")
+        if usd_out.name in outputs:
+            raise OptionError(f"{processor.api_name}: give {usd_out.name}= (a file) or into= (in memory), not both")
+        outputs[usd_out.name] = into
+    elif usd_out is not None and usd_out.required and usd_out.name not in outputs:
+        outputs[usd_out.name] = new_anonymous_layer(f"{usd_out.name}.usda")
+    for o in processor.outputs:
+        if o.required and o.name not in outputs:
+            raise OptionError(f"{processor.api_name}: {o.name}: missing (the {o.help})")
+    result = registry.call(processor.name, *inputs, options=options, **outputs)
+    for name, value in list(result.layers.items()):
+        if is_in_memory(value):
+            result.layers[name] = target_layer(value)
+    if processor.api_name in _LEGACY_RETURNS and result.legacy is None:
+        result.legacy = result.summary
+    return result
+
+
+def _signature(processor) -> inspect.Signature:
+    P = inspect.Parameter
+    params, seen_default = [], False
+    for i in processor.inputs:
+        optional = not i.required or i.default_from is not None
+        seen_default = seen_default or optional
+        params.append(P(i.name, P.POSITIONAL_OR_KEYWORD, default=None if seen_default else P.empty))
+    params.append(P("options", P.POSITIONAL_OR_KEYWORD, default=None))
+    params += [P(o.name, P.KEYWORD_ONLY, default=None) for o in processor.outputs]
+    if any(o.kind == "usd" for o in processor.outputs):
+        params.append(P("into", P.KEYWORD_ONLY, default=None))
+    return inspect.Signature(params, return_annotation="Result")
+
+
+def _docstring(processor) -> str:
+    lines = [f"{processor.summary[0].upper()}{processor.summary[1:]} (``usdface {processor.name}``).", "",
+             processor.description, "", "Parameters", "----------"]
+    for i in processor.inputs:
+        kind = {"usd": "path, Sdf.Layer or Usd.Stage", "files": "list of paths"}.get(i.kind, "path")
+        extra = f"; default: ``{i.default_from}``" if i.default_from else "" if i.required else ", optional"
+        lines += [f"{i.name} : {kind}{extra}", f"    {i.help}"]
+    lines += [f"options : usdface.options.{processor.options.__name__}, dict, optional",
+              "    The command's options (its flags, by field name)."]
+    for o in processor.outputs:
+        kind = "path" if o.kind != "usd" else "path, optional (or ``into``)"
+        lines += [f"{o.name} : {kind}", f"    {o.help}"]
+    if any(o.kind == "usd" for o in processor.outputs):
+        lines += ["into : Sdf.Layer or Usd.Stage, optional",
+                  "    Author the output here, in memory (default: a new anonymous layer)."]
+    lines += ["", "Returns", "-------", "Result"]
+    return "\n".join(lines)
+
+
+def _make(processor):
+    def command(*args, **kwargs) -> Result:
+        return _call(processor, args, kwargs)
+
+    command.__name__ = command.__qualname__ = processor.api_name
+    command.__module__ = __name__
+    command.__signature__ = _signature(processor)
+    command.__doc__ = _docstring(processor)
+    command.processor = processor
+    return command
+
+
+def commands() -> list[str]:
+    """The API's command functions: one per command of the registry."""
+    return [p.api_name for p in registry.commands()]
+
+
+def __getattr__(name: str):
+    try:
+        processor = registry.find(name)
+    except OptionError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    if not processor.command or processor.api_name != name:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    fn = _make(processor)
+    globals()[name] = fn
+    return fn
+
+
+def __dir__():
+    return sorted(set(globals()) | set(commands()))
+
+
+__all__ = list(OTHER_EXPORTS) + commands()

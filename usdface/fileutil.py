@@ -34,6 +34,8 @@ from pathlib import Path
 #: environment variable of the fault-injection test hook (see the module docstring)
 FAULT_ENV = "USDFACE_TEST_FAULT"
 FAULT_POINTS = ("create", "save", "replace", "commit")
+#: temporaries whose owner cannot be asked (another host) are removed once older than this (seconds)
+TEMPORARY_MAX_AGE = 24 * 3600.0
 #: this machine's name as it appears in temporary names (letters, digits and _ only)
 HOST_TAG = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname() or "localhost")[:48] or "localhost"
 # ".<name>.tmp-<pid>[@<host>][-<token>][.<suffix>]", ".usdface-run-<pid>[@<host>][-<token>]" (and the

@@ -55,7 +55,7 @@ import time
 from pathlib import Path
 
 from .errors import LockedError
-from .fileutil import (HOST_TAG, format_bytes, fsync_dir, fsync_file, inject_fault, is_temporary_name,
+from .fileutil import (HOST_TAG, TEMPORARY_MAX_AGE, format_bytes, fsync_dir, fsync_file, inject_fault, is_temporary_name,
                        owner_is_dead, path_digest, same_file_problems, temporary_owner, write_error)
 
 log = logging.getLogger("usdface")
@@ -65,7 +65,6 @@ LOCK_NAME = ".usdface-lock"
 MARKER_NAME = "COMMIT.json"
 SUMMARY_NAME = "summary.json"
 #: temporaries whose owner cannot be asked (another host) are removed after this many seconds
-TEMPORARY_MAX_AGE = 24 * 3600.0
 #: environment variable of the kill test hook (module docstring)
 KILL_ENV = "USDFACE_TEST_KILL_AT"
 

@@ -13,15 +13,24 @@ matrices for the RBF transfer. All lengths are in mesh units.
 - :mod:`usdface.distance.graph`: edge graphs, components, the multi-source search kernel
 - :mod:`usdface.distance.marching`: the fast-marching kernel and its update tables
 """
-from .euclidean import (DistanceWarning, available_memory, check_matrix_memory, euclidean_at_sources,
-                        euclidean_distances, pairwise_euclidean, source_points)
-from .geodesic import (BACKENDS, DEFAULT_BACKEND, DistanceReport, GeodesicResult, GeodesicSolver, auto_t_coef,
-                       geodesic_distances)
-from .hybrid import HybridResult, hybrid_distances, hybrid_weights, region_mask
+from ..lazy import lazy_exports
+
+#: public name -> submodule, loaded on first use
+_EXPORTS = {
+    "DistanceWarning": "euclidean", "available_memory": "euclidean", "check_matrix_memory": "euclidean",
+    "euclidean_at_sources": "euclidean", "euclidean_distances": "euclidean", "pairwise_euclidean": "euclidean",
+    "source_points": "euclidean",     "BACKENDS": "methods", "DEFAULT_BACKEND": "methods", "GEODESIC_ROLES": "methods", "METHODS": "methods",
+    "DistanceReport": "geodesic", "GeodesicResult": "geodesic", "GeodesicSolver": "geodesic",
+    "auto_t_coef": "geodesic", "geodesic_distances": "geodesic", "HybridResult": "hybrid",
+    "hybrid_distances": "hybrid", "hybrid_weights": "hybrid", "region_mask": "hybrid",
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 __all__ = [
     "BACKENDS",
     "DEFAULT_BACKEND",
+    "GEODESIC_ROLES",
+    "METHODS",
     "DistanceReport",
     "DistanceWarning",
     "GeodesicResult",

@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ComputeError, InputError, OptionError, list_names
-from ..options import BACKENDS, DEFAULT_BACKEND  # the back-ends, named once with the command line's options
+from .methods import BACKENDS, DEFAULT_BACKEND
 from . import graph as _graph
 from .euclidean import (_check_dtype, check_matrix_memory, pairwise_euclidean, source_points,
                         validate_sources, warn)

@@ -21,6 +21,9 @@ import numpy as np
 from ..errors import DependencyError, InputError, OptionError, ResourceError
 from ..fileutil import fsync_dir, fsync_file
 
+#: x264 speed presets the playblast offers (``--preset``)
+X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower")
+
 __all__ = ["MOVIE_SUFFIXES", "MovieWriter", "movie_info", "read_movie", "require_encoder"]
 
 MOVIE_SUFFIXES = (".mp4", ".m4v", ".mov")

@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import OptionError
 from ..preview import Camera, fit_camera, render_mesh, view_yaw
 from ..preview.burnin import burn_in, placeholder, timecode
-from ..options import COLORS  # one list of surface colours: options, preview, playblast
+from ..preview.colormap import COLORS  # one list of surface colours: preview, playblast, the options
 
 __all__ = ["COLORS", "PanelStyle", "ShotPanel", "framing_sample"]
 

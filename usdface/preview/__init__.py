@@ -16,12 +16,18 @@ Main entry points
 - Lower level: :func:`rasterize`, :func:`render_buffers`, :func:`point_visibility`,
   :func:`polygon_edges`, :func:`apply_colormap`, :func:`colormap_lut`.
 """
-from .camera import TURNTABLE_SWING, VIEW_CHOICES, VIEWS, Camera, view_yaw
-from .colormap import COLORMAPS, apply_colormap, colormap_lut, region_palette
-from .png import encode_jpeg
-from .render import (Buffers, encode_png, fit_camera, point_visibility, polygon_edges, rasterize, render_buffers, render_face,
-                     render_mesh, vertex_normals, write_png)
-from .sheet import contact_sheet, render_sequence
+from ..lazy import lazy_exports
+
+#: public name -> submodule, loaded on first use
+_EXPORTS = {
+    "Camera": "camera", "TURNTABLE_SWING": "camera", "VIEWS": "camera", "VIEW_CHOICES": "camera",
+    "view_yaw": "camera", "COLORMAPS": "colormap", "apply_colormap": "colormap", "colormap_lut": "colormap",
+    "region_palette": "colormap", "encode_jpeg": "png", "Buffers": "render", "encode_png": "render",
+    "fit_camera": "render", "point_visibility": "render", "polygon_edges": "render", "rasterize": "render",
+    "render_buffers": "render", "render_face": "render", "render_mesh": "render", "vertex_normals": "render",
+    "write_png": "render", "contact_sheet": "sheet", "render_sequence": "sheet",
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 __all__ = ["COLORMAPS", "TURNTABLE_SWING", "VIEW_CHOICES", "VIEWS", "Buffers", "Camera", "apply_colormap", "colormap_lut", "contact_sheet", "encode_jpeg", "encode_png", "fit_camera",
            "point_visibility", "polygon_edges", "rasterize", "region_palette", "render_buffers",

@@ -18,6 +18,9 @@ import numpy as np
 
 from ..errors import OptionError, list_names
 
+#: surface colours the commands offer (``preview --color``, ``playblast --color``)
+COLORS = ("regions", "displacement", "error", "hybrid-weight", "none")
+
 #: control colours, sRGB hex, evenly spaced from the low end to the high end
 _CONTROL = {
     "viridis": ("#440154", "#472d7b", "#3b528b", "#2c728e", "#21908c",

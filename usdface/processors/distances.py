@@ -10,30 +10,26 @@ import time
 
 import numpy as np
 
+from ..distance.matrices import DistanceMatrix, compute_distance_matrix
 from ..errors import MeshError, OptionError
+from ..options import DistanceOptions
+from ..registry import Result
 from ..usd.layers import check_output_path, open_stage, provenance
 
-METHODS = ("euclidean", "geodesic", "hybrid")
-#: roles whose vertices seed the hybrid's geodesic regions (paper Fig. 5: mouth and eyes)
-GEODESIC_ROLES = ("mouth", "eye", "geodesic")
 
+def distances(mesh_path, binding_path, *, options: DistanceOptions, output, cache=None) -> Result:
+    """Compute the N x C and C x C distance matrices (``options.method``); write the analysis layer.
 
-def distances(mesh_path, binding_path, output, *, method="hybrid", backend="graph", region_radius_cm=1.0,
-              sigma_cm=2.0, threshold=0.6, pin_border="upper", components="error", t_coef="auto",
-              cache=None) -> dict:
-    """Compute the N x C and C x C distance matrices with ``method``; write the analysis layer.
-
-    ``cache`` (a :class:`usdface.batch.cache.ContentCache`, default None: no cache) reuses matrices
+    ``cache`` (a :class:`usdface.cache.ContentCache`, default None: no cache) reuses matrices
     computed before for the same mesh points, topology and regions, bound points, method and
     options (one character, many takes); the analysis layer written is the same either way. Run
     times are reported in the summary only, never in the layer, so the layer is reproducible.
     """
-    from ..units import scale_between
     from ..usd.analysis_layer import write_analysis_layer
     from ..usd.mesh_layer import read_binding, read_mesh_layer
 
-    if method not in METHODS:
-        raise OptionError(f"--method {method}: expected one of {', '.join(METHODS)}")
+    params = options.parameters()
+    method = params.method
     out = check_output_path(output, inputs={"--mesh": mesh_path, "--binding": binding_path})
     mesh, regions = read_mesh_layer(mesh_path)
     binding = read_binding(open_stage(binding_path, what="binding"), source=str(binding_path))
@@ -42,9 +38,7 @@ def distances(mesh_path, binding_path, output, *, method="hybrid", backend="grap
                           f"{mesh_path} has {mesh.n_points} points: they belong to different meshes")
     if mesh.units is None:
         raise MeshError(f"mesh {mesh_path}: units unknown (no metersPerUnit); re-import it with --units")
-    cm = scale_between("cm", mesh.units)
-    options = {"method": method, "backend": backend, "region_radius_cm": region_radius_cm, "sigma_cm": sigma_cm,
-               "threshold": threshold, "pin_border": pin_border, "components": components, "t_coef": t_coef}
+    options = params.record()
     started = time.perf_counter()
     cache_key = cache_status = None
     if cache is not None:
@@ -55,13 +49,11 @@ def distances(mesh_path, binding_path, output, *, method="hybrid", backend="grap
                 matrix, timing = _matrix_from_entry(entry), {}
                 cache_status = "hit"
             else:
-                matrix, timing = _compute(mesh, regions, binding, mesh_path, method, backend, components, t_coef,
-                                          pin_border, region_radius_cm, sigma_cm, threshold, cm)
+                matrix, timing = compute_distance_matrix(mesh, regions, binding, params, mesh_name=f"mesh {mesh_path}")
                 _store(cache, cache_key, matrix)
                 cache_status = "miss"
     else:
-        matrix, timing = _compute(mesh, regions, binding, mesh_path, method, backend, components, t_coef,
-                                  pin_border, region_radius_cm, sigma_cm, threshold, cm)
+        matrix, timing = compute_distance_matrix(mesh, regions, binding, params, mesh_name=f"mesh {mesh_path}")
     seconds = time.perf_counter() - started
     backend = matrix.backend
     params = matrix.parameters
@@ -79,78 +71,16 @@ def distances(mesh_path, binding_path, output, *, method="hybrid", backend="grap
                  f"({100 * params['geodesicFraction']:.1f}%)")
     if cache_status == "hit":
         extra += " (from the cache)"
-    summary["_text"] = [f"wrote {out}: {method}{'/' + backend if backend != 'none' else ''} distances, "
+    text = [f"wrote {out}: {method}{'/' + backend if backend != 'none' else ''} distances, "
                         f"{mesh.n_points} vertices x ({binding.n_markers} markers + {cons.size} constraint vertices) "
                         f"in {seconds:.2f} s{extra}"]
-    return summary
-
-
-def _compute(mesh, regions, binding, mesh_path, method, backend, components, t_coef, pin_border,
-             region_radius_cm, sigma_cm, threshold, cm):
-    """The matrices and their parameters; returns (DistanceMatrix, timings kept out of the layer)."""
-    from ..distance import (GeodesicSolver, euclidean_at_sources, euclidean_distances, hybrid_distances)
-    from ..mesh.regions import constraint_vertices
-    from ..rbf.stiffness import median_marker_spacing_from_points
-    from ..usd.analysis_layer import DistanceMatrix
-
-    started = time.perf_counter()
-    timing = {}
-
-    marker_points = binding.surface_points(mesh.points)
-    spacing = median_marker_spacing_from_points(marker_points)
-    cons, cons_counts = constraint_vertices(mesh.points, regions, spacing=spacing, pin_border=pin_border,
-                                            exclude_near=marker_points, clearance=0.5 * spacing)
-    src_tri = np.concatenate([binding.triangle_vertices, np.repeat(cons[:, None], 3, axis=1)])
-    src_bary = np.concatenate([binding.barycentrics, np.tile([1.0, 0.0, 0.0], (cons.size, 1))])
-    names = list(binding.names) + [f"constraint vertex {v}" for v in cons]
-    params = {"constraintSpacing": spacing, "constraintRegions": cons_counts, "pinBorder": pin_border}
-    weight = None
-    report = None
-    if method == "euclidean":
-        backend = "none"
-        vertex = euclidean_distances(mesh.points, src_tri, src_bary)
-        centres = euclidean_at_sources(mesh.points, src_tri, src_bary)
-    else:
-        solver = GeodesicSolver.from_mesh(mesh, backend=backend, components=components, t_coef=t_coef)
-        if method == "geodesic":
-            result = solver.solve(src_tri, src_bary, names=names)
-            vertex, centres, report = result.vertex, result.sources, result.report
-        else:
-            seeds = [r.loop if r.loop is not None else r.indices for r in regions if r.role in GEODESIC_ROLES]
-            if not seeds:
-                raise MeshError(f"mesh {mesh_path}: no mouth, eye or geodesic region for the hybrid method "
-                                f"(regions: {', '.join(r.name for r in regions) or 'none'}); use --method geodesic, "
-                                "or add a FaceRegionAPI instance with role 'geodesic'")
-            hyb = hybrid_distances(solver, src_tri, src_bary, seeds, radius=region_radius_cm * cm,
-                                   sigma=sigma_cm * cm, threshold=threshold, names=names)
-            vertex, centres, weight, report = hyb.vertex, hyb.sources, hyb.weights, hyb.geodesic
-            params.update(regionRadius=region_radius_cm * cm, sigma=sigma_cm * cm, threshold=threshold,
-                          regionSeeds=[r.name for r in regions if r.role in GEODESIC_ROLES],
-                          geodesicVertices=int(hyb.geodesic_vertices.sum()),
-                          geodesicFraction=float(hyb.geodesic_vertices.mean()))
-            timing["hybridSeconds"] = {k: round(v, 4) for k, v in hyb.seconds.items()}
-        if report is not None:
-            params.update(components=report.n_components, unreachablePairs=report.unreachable_pairs,
-                          euclideanFallbackPairs=report.euclidean_fallback_pairs,
-                          exactInfEntries=report.exact_inf_entries, notes=list(report.notes))
-            if report.t_coef:
-                params["tCoef"] = {str(k): v for k, v in report.t_coef.items()}
-    timing["computeSeconds"] = round(time.perf_counter() - started, 4)
-    if not np.isfinite(vertex).all():
-        bad = int((~np.isfinite(vertex)).sum())
-        raise MeshError(f"{method} distances: {bad} entries are infinite (vertices unreachable from some markers); "
-                        "use --components euclidean to fall back to Euclidean distances across components")
-    matrix = DistanceMatrix(method=method, backend=backend, marker_names=tuple(binding.names),
-                            constraint_vertices=cons, vertex_to_centre=np.asarray(vertex, dtype=np.float32),
-                            centre_to_centre=np.asarray(centres, dtype=np.float64), parameters=params,
-                            hybrid_weight=weight)
-    return matrix, timing
+    return Result(layers={"output": out}, summary=summary, text=text)
 
 
 def _cache_key(mesh, regions, binding, options) -> str:
     """Everything the matrices depend on: mesh points, topology, units and regions; the bound
     surface points (names, triangles, barycentrics); method and options."""
-    from ..batch.cache import content_key
+    from ..cache import content_key
 
     region_parts = []
     for r in sorted(regions, key=lambda r: r.name):
@@ -174,8 +104,6 @@ def _store(cache, key, matrix) -> None:
 
 
 def _matrix_from_entry(entry):
-    from ..usd.analysis_layer import DistanceMatrix
-
     a = entry.arrays()
     m = entry.meta
     return DistanceMatrix(method=m["method"], backend=m["backend"], marker_names=tuple(m["markerNames"]),

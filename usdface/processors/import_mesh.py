@@ -2,49 +2,24 @@
 from __future__ import annotations
 
 import logging
-from pathlib import Path
 
 import numpy as np
 
-from ..mesh.model import FaceMesh
-from ..usd.layers import USD_SUFFIXES, check_output_path, provenance
+from ..options import ImportMeshOptions
+from ..registry import Result
+from ..usd.inputs import load_mesh
+from ..usd.layers import check_output_path, provenance
 
 log = logging.getLogger("usdface")
 
 
-def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
-    """Read a mesh file, a USD mesh layer or (Python API) an in-memory stage or layer; returns
-    (mesh, regions already on it)."""
-    from ..usd.layers import is_in_memory
-
-    if is_in_memory(path) or Path(path).suffix.lower() in USD_SUFFIXES:
-        from ..usd.mesh_layer import read_mesh_layer
-
-        mesh, regions = read_mesh_layer(path)
-        if units is not None and mesh.units is not None and units != mesh.units:
-            from ..errors import OptionError
-
-            raise OptionError(f"--units {units} conflicts with {path}'s metersPerUnit ({mesh.units})")
-        if mesh.units is None:
-            if units is None:
-                from ..errors import MeshError
-
-                raise MeshError(f"mesh {path}: the layer has no metersPerUnit; say its units with --units "
-                                "(usdface never guesses units for USD input)")
-            import dataclasses
-
-            mesh = dataclasses.replace(mesh, units=units)
-        return mesh, regions
-    from ..io.meshes import read_mesh
-
-    return read_mesh(path, units=units), []
-
-
-def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
-    """Import a mesh, find its holes (outer border, mouth, eyes) as regions, write the mesh layer."""
+def import_mesh(source, *, options: ImportMeshOptions, output) -> Result:
+    """Import a mesh (a file, or a USD mesh layer / stage), find its holes (outer border, mouth,
+    eyes) as regions, write the mesh layer."""
     from ..mesh.topology import subset_faces, border_surface, boundary_loops, find_hole_regions, mesh_topology
     from ..usd.mesh_layer import write_mesh_layer
 
+    input, units, up_axis = source, options.units, options.up_axis
     out = check_output_path(output, inputs={"input": input})
     mesh, regions = load_mesh(input, units=units)
     mesh.check_degenerate()
@@ -68,11 +43,11 @@ def import_mesh(input, output, *, units=None, up_axis="Y") -> dict:
         "nonManifoldEdges": topo["non_manifold_edges"], "borderSurface": surface.summary(),
         "regions": {r.name: {"role": r.role, "vertices": int(r.indices.size)} for r in regions},
     }
-    summary["_text"] = [
+    text = [
         f"wrote {out}: {mesh.n_points} points, {mesh.n_faces} faces "
         f"({', '.join(f'{v} with {k} sides' for k, v in sizes.items())}), units {mesh.units}, "
         f"uvs {'yes' if mesh.uvs is not None else 'no'}",
         f"  topology: {topo['boundary_loops']} boundary loops, {topo['components']} component(s), "
         f"{topo['non_manifold_edges']} non-manifold edges",
     ] + [f"  region {r.name}: role {r.role}, {r.indices.size} vertices" for r in regions]
-    return summary
+    return Result(layers={"output": out}, summary=summary, text=text)

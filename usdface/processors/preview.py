@@ -5,6 +5,8 @@ import numpy as np
 
 from ..fileutil import refuse_overwriting_inputs
 from ..errors import OptionError
+from ..options import PreviewOptions
+from ..registry import Result
 
 
 def _scalars(scene, color, reference_points):
@@ -43,14 +45,16 @@ def _render_one(scene, *, camera, color, reference_points, labels, title, scalar
     return render_mesh(scene.mesh.points, scene.mesh.triangles(), camera=camera, title=title, **kwargs)
 
 
-def preview(path, output, *, frame=None, frames=None, view="front", size=768, color="regions", reference=None,
-            labels=False) -> dict:
-    """Render ``path`` at ``frame`` (or a contact sheet of ``frames``) to the PNG ``output``."""
+def preview(file, *, options: PreviewOptions, output) -> Result:
+    """Render ``file`` at ``options.frame`` (or a contact sheet of ``options.frames``) to the PNG ``output``."""
     from ..preview import contact_sheet, fit_camera, write_png
     from ..usd.evaluate import FaceEvaluator
     from ..usd.layers import open_stage
     from ..usd.scene import read_scene_frame
 
+    path = file
+    frame, frames, view, size, color = options.frame, options.frames, options.view, options.size, options.color
+    reference, labels = options.reference, options.labels
     refuse_overwriting_inputs({"-o": output}, {"file": path, "--reference": reference})
     if not str(output).lower().endswith(".png"):
         raise OptionError(f"-o {output}: expected a .png file")
@@ -91,5 +95,6 @@ def preview(path, output, *, frame=None, frames=None, view="front", size=768, co
         captions.append(f"t = {s.time:g}")
     image = images[0] if len(images) == 1 else contact_sheet(images, captions, title=f"{name}  ({color})")
     write_png(output, image)
-    return {"output": str(output), "frames": [s.time for s in scenes], "view": view, "color": color,
-            "_text": [f"wrote {output} ({image.shape[1]}x{image.shape[0]}, {len(scenes)} frame(s), {color})"]}
+    summary = {"output": str(output), "frames": [s.time for s in scenes], "view": view, "color": color}
+    return Result(files={"output": str(output)}, summary=summary,
+                  text=[f"wrote {output} ({image.shape[1]}x{image.shape[0]}, {len(scenes)} frame(s), {color})"])

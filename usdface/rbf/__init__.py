@@ -9,25 +9,18 @@ Pure numpy (no scipy in the solve or the per-frame loop); no pxr.
 """
 from __future__ import annotations
 
-from .kernels import (
-    DECAYING_KERNELS,
-    KERNELS,
-    canonical_kernel_name,
-    cubic,
-    gaussian,
-    get_kernel,
-    inverse_multiquadric,
-    multiquadric,
-    thin_plate_spline,
-)
-from .stiffness import (
-    DEFAULT_WIDTH_FACTOR,
-    default_width,
-    median_marker_spacing,
-    median_marker_spacing_from_points,
-    resolve_widths,
-)
-from .transfer import ADVICE_CONDITION, RBFTransfer, transfer_motion
+from ..lazy import lazy_exports
+
+#: public name -> submodule, loaded on first use
+_EXPORTS = {
+    "DECAYING_KERNELS": "kernels", "KERNELS": "kernels", "canonical_kernel_name": "kernels", "cubic": "kernels",
+    "gaussian": "kernels", "get_kernel": "kernels", "inverse_multiquadric": "kernels", "multiquadric": "kernels",
+    "thin_plate_spline": "kernels", "DEFAULT_WIDTH_FACTOR": "stiffness", "default_width": "stiffness",
+    "median_marker_spacing": "stiffness", "median_marker_spacing_from_points": "stiffness",
+    "resolve_widths": "stiffness", "ADVICE_CONDITION": "transfer", "RBFTransfer": "transfer",
+    "transfer_motion": "transfer",
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 __all__ = [
     "ADVICE_CONDITION",

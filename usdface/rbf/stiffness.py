@@ -38,6 +38,7 @@ Overrides
 """
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -233,3 +234,25 @@ def resolve_widths(
             out[M:] = default()
     _check_positive(out, labels)
     return out
+
+
+def parse_stiffness(value):
+    """--stiffness: None, a number (mesh units, every marker), or a JSON file {marker: width}."""
+    if value is None or isinstance(value, (int, float, dict)):
+        return value
+    try:
+        return float(value)
+    except ValueError:
+        pass
+    from pathlib import Path
+
+    path = Path(value)
+    if not path.is_file():
+        raise OptionError(f"--stiffness {value}: expected a width in mesh units or a JSON file {{marker: width}}")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise OptionError(f"--stiffness {value}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise OptionError(f"--stiffness {value}: expected a JSON object {{marker: width}}")
+    return data

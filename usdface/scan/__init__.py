@@ -14,10 +14,17 @@ registration of a generic face onto a scan.
 
 cv2 is imported by these modules (and io/, tracking/, preview/) only.
 """
-from .calibration import StereoCalibration, read_calibration, rectify_pair
-from .landmarks import FACE_LANDMARKS, Landmarks, read_landmarks, write_landmarks
-from .register import GenericRegistration, RegistrationResult, register_generic, similarity_fit
-from .stereo import METHODS, DisparityResult, bad_pixel_rate, compute_disparity
+from ..lazy import lazy_exports
+
+#: public name -> submodule, loaded on first use
+_EXPORTS = {
+    "StereoCalibration": "calibration", "read_calibration": "calibration", "rectify_pair": "calibration",
+    "FACE_LANDMARKS": "landmarks", "Landmarks": "landmarks", "read_landmarks": "landmarks",
+    "write_landmarks": "landmarks", "GenericRegistration": "register", "RegistrationResult": "register",
+    "register_generic": "register", "similarity_fit": "register", "METHODS": "stereo", "DisparityResult": "stereo",
+    "bad_pixel_rate": "stereo", "compute_disparity": "stereo",
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 __all__ = ["StereoCalibration", "read_calibration", "rectify_pair", "FACE_LANDMARKS", "Landmarks",
            "read_landmarks", "write_landmarks", "GenericRegistration", "RegistrationResult", "register_generic",

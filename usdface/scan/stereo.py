@@ -36,7 +36,7 @@ from ..errors import InputError, OptionError
 __all__ = ["METHODS", "DisparityResult", "compute_disparity", "bad_pixel_rate", "disparity_range",
            "check_rectified", "check_pair", "fill_background"]
 
-METHODS = ("sgbm", "sgbm-wls", "graphcut")
+from .methods import STEREO_METHODS as METHODS  # named once
 
 
 @dataclass(frozen=True, eq=False)

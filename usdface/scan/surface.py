@@ -22,7 +22,7 @@ from ..errors import ComputeError, OptionError, UsdFaceError
 __all__ = ["SURFACE_METHODS", "ScanSurface", "grid_mesh", "clean_mesh", "reconstruct_surface",
            "camera_to_scan", "scan_to_camera"]
 
-SURFACE_METHODS = ("grid", "poisson", "ball-pivoting")
+from .methods import SURFACES as SURFACE_METHODS  # named once
 
 
 def camera_to_scan(points) -> np.ndarray:

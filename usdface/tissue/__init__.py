@@ -18,7 +18,10 @@
 No pxr here: rig and animation layers are written by :mod:`usdface.usd.muscle_layer`, the
 commands live in :mod:`usdface.processors.tissue`.
 """
-import importlib
+from ..lazy import lazy_exports
+
+#: time integrators of the simulator (:class:`Simulator`), named once: the options offer these
+INTEGRATORS = ("explicit", "symplectic", "implicit")
 
 #: public name -> submodule; loaded on first use, so that the command line (which only needs the
 #: preset names) does not pay for the simulator and its numba kernels at start-up
@@ -38,20 +41,9 @@ _EXPORTS = {
 # eager: the function shares its submodule's name, and a lazy attribute would lose to the submodule
 # once anything imports usdface.tissue.animate (the module is light: no simulator until it runs)
 from .animate import animate  # noqa: E402
-from ..options import INTEGRATORS  # noqa: E402  (named once, with the other options' choices)
 
 
-def __getattr__(name: str):
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 
 __all__ = [

@@ -37,7 +37,7 @@ from ..errors import ComputeError, OptionError
 from . import _kernels as kn
 from .forces import (incidence, muscle_forces, prism_volume_gradients, skull_forces, smooth_ramp, spring_forces,
                      volume_forces)
-from ..options import INTEGRATORS  # named once, with the other options' choices
+from . import INTEGRATORS  # named once, in the package
 from .model import TissueModel
 from .muscles import Jaw, MuscleSet, check_contractions
 

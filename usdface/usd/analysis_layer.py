@@ -6,11 +6,11 @@ Both layers are ``over``s on the mesh prim; a shot stage composes them over the 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, Vt
 
+from ..distance.matrices import DistanceMatrix
 from ..errors import InputError
 from .layers import (add_sublayer, checkpoint, open_stage, output_layer, relative_asset_path, set_provenance,
                      set_stage_metadata)
@@ -20,32 +20,6 @@ from .schemas import require_registered
 DISTANCE_API = "FaceDistanceMatrixAPI"
 TRANSFER_API = "FaceTransferAPI"
 HYBRID_WEIGHT_PRIMVAR = "usdface:hybridWeight"
-
-
-@dataclass(frozen=True)
-class DistanceMatrix:
-    """A distance matrix as stored on the mesh.
-
-    Attributes
-    ----------
-    method : str  ("euclidean", "geodesic", "hybrid")
-    backend : str ("none", "graph", "heat", "exact")
-    marker_names : tuple of str, length M
-    constraint_vertices : ndarray (P,) int64
-    vertex_to_centre : ndarray (N, C) float32, C = M + P, mesh units
-    centre_to_centre : ndarray (C, C) float64 (row j uses centre j's hybrid weight)
-    parameters : dict
-    hybrid_weight : ndarray (N,) float32 or None
-    """
-
-    method: str
-    backend: str
-    marker_names: tuple
-    constraint_vertices: np.ndarray
-    vertex_to_centre: np.ndarray
-    centre_to_centre: np.ndarray
-    parameters: dict
-    hybrid_weight: np.ndarray | None = None
 
 
 def write_analysis_layer(path, matrices: list[DistanceMatrix], *, mesh_path, units, prov: dict) -> str:

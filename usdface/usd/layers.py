@@ -280,6 +280,11 @@ def is_in_memory(target) -> bool:
     return isinstance(target, (Sdf.Layer, Usd.Stage))
 
 
+def new_anonymous_layer(name: str) -> Sdf.Layer:
+    """A new in-memory layer (the Python API's default output)."""
+    return Sdf.Layer.CreateAnonymous(name)
+
+
 def describe(source) -> str:
     """A file path as given, or an in-memory stage/layer by its root layer's name (for messages)."""
     if isinstance(source, Usd.Stage):

@@ -35,9 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
-from ..errors import OptionError, ResourceError
-from ..fileutil import HOST_TAG, file_digest, fsync_dir, owner_is_dead
+from . import __version__
+from .errors import OptionError, ResourceError
+from .fileutil import HOST_TAG, TEMPORARY_MAX_AGE, file_digest, fsync_dir, owner_is_dead
 
 log = logging.getLogger("usdface")
 
@@ -341,10 +341,8 @@ class ContentCache:
 
     def tidy(self, *, max_age: float | None = None) -> list[str]:
         """Remove entries being written or discarded by processes that are dead (this host: no such
-        process; other hosts: older than usdface.shot_commit.TEMPORARY_MAX_AGE); returns their names."""
+        process; other hosts: older than usdface.fileutil.TEMPORARY_MAX_AGE); returns their names."""
         import time
-
-        from ..shot_commit import TEMPORARY_MAX_AGE
 
         max_age = TEMPORARY_MAX_AGE if max_age is None else max_age
         removed = []

@@ -1,0 +1,143 @@
+"""The ``usdface`` command: parse, call :mod:`usdface.api`, print.
+
+Thin by design: the parser comes from the registry (:mod:`usdface.console.parser`); each
+subcommand builds its options object, refuses an output that is one of its inputs, calls the
+:mod:`usdface.api` function of the same name and prints the :class:`~usdface.registry.Result`.
+Every error reaches the user as one line on stderr (no traceback) and an exit code: 2 bad input or
+usage (a UsdFaceError; also argparse's own usage errors), 1 a failure while working (environment
+faults included: disk full, read-only folder, permission, out of memory, a USD error, an output
+folder locked by another run; a failed `check`; a batch with a failed shot), 130 interrupted by
+Ctrl-C (SIGINT), 143 stopped by SIGTERM (how farm schedulers stop jobs), both after removing the
+partial work.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import signal
+import sys
+import threading
+
+from ..errors import Interrupted, UsdFaceError
+from .arguments import options_from_args
+from .parser import build_parser
+
+__all__ = ["main", "build_parser", "run_command"]
+
+log = logging.getLogger("usdface")
+
+
+def _option_labels(parser: argparse.ArgumentParser) -> dict:
+    """{dest: how the user wrote it ("-o", "--mesh", "input")} for the chosen subcommand."""
+    labels = {}
+    todo = [parser]
+    while todo:
+        p = todo.pop()
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                todo.extend(action.choices.values())
+            elif action.dest not in labels:
+                labels[action.dest] = action.option_strings[0] if action.option_strings else action.dest
+    return labels
+
+
+def refuse_outputs_over_inputs(args, processor, parser: argparse.ArgumentParser | None = None) -> None:
+    """Every command: refuse (exit 2) when a file it would write is one of the files it reads."""
+    from ..fileutil import refuse_overwriting_inputs
+
+    labels = _option_labels(parser) if parser is not None else {}
+    output_dests = {o.argument for o in processor.outputs}
+    outputs, inputs = {}, {}
+    for dest, value in vars(args).items():
+        if dest in ("command", "_processor") or dest.endswith("_command"):
+            continue
+        label = labels.get(dest, dest)
+        for v in (value if isinstance(value, list) else [value]):
+            if not isinstance(v, (str, os.PathLike)) or not str(v):
+                continue
+            if dest in output_dests:
+                outputs[label] = v
+            elif os.path.exists(v):
+                inputs.setdefault(label, []).append(os.fspath(v))
+    if outputs and inputs:
+        from ..usd.layers import composed_files
+
+        for label, paths in list(inputs.items()):
+            for p in paths:
+                deps = composed_files(p)
+                if deps:
+                    inputs[f"composed by {label} {p}"] = deps
+        refuse_overwriting_inputs(outputs, inputs)
+
+
+def run_command(processor, args):
+    """The command's work: its options object from ``args``, then the API function of the same
+    name (looked up when it runs, so a test can replace it) with the inputs and outputs given."""
+    from .. import api
+
+    options = options_from_args(processor.options, args)
+    inputs = {i.name: getattr(args, i.argument) for i in processor.inputs}
+    outputs = {o.name: getattr(args, o.argument) for o in processor.outputs if getattr(args, o.argument) is not None}
+    return getattr(api, processor.api_name)(**inputs, options=options, **outputs)
+
+
+class _terminate_as_interrupt:
+    """SIGTERM raises :class:`~usdface.errors.Interrupted` (like Ctrl-C), so partial work is removed."""
+
+    def __enter__(self):
+        self.previous = None
+        if threading.current_thread() is threading.main_thread() and hasattr(signal, "SIGTERM"):
+            self.previous = signal.signal(signal.SIGTERM, self._raise)
+        return self
+
+    @staticmethod
+    def _raise(signum, frame):
+        raise Interrupted(signum)
+
+    def __exit__(self, *exc):
+        if self.previous is not None:
+            signal.signal(signal.SIGTERM, self.previous)
+        return False
+
+
+def _print_result(result, as_json: bool, quiet: bool) -> None:
+    if as_json:
+        print(json.dumps(result.summary, indent=2, default=str))
+        return
+    if quiet:
+        return
+    for line in result.text:
+        print(line)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.ERROR if args.quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
+    logging.basicConfig(level=level, format="usdface: %(levelname)s: %(message)s", stream=sys.stderr)
+    processor = args._processor
+    name = f"usdface {processor.name}"
+    try:
+        with _terminate_as_interrupt():
+            refuse_outputs_over_inputs(args, processor, parser)
+            result = run_command(processor, args)
+    except UsdFaceError as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except Interrupted as exc:
+        print(f"{name}: stopped by {exc}; partial work removed", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print(f"{name}: interrupted; partial work removed", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - file system, memory and USD errors: one line, exit 1
+        if not isinstance(exc, (OSError, MemoryError)) and not type(exc).__module__.startswith("pxr"):
+            raise  # a bug: the traceback is what a report needs
+        from ..fileutil import describe_exception
+
+        print(f"{name}: error: {describe_exception(exc)}", file=sys.stderr)
+        return 1
+    _print_result(result, args.json, args.quiet)
+    return int(result.exit_code)

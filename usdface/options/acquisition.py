@@ -1,0 +1,122 @@
+"""Options of face acquisition (seed 001): stereo depth (`stereo`), detection (`detect`), landmark
+models (`landmarks train`), registering the generic face onto a scan (`register`), and carrying a
+generic blend-shape rig onto a face (`shapes transfer`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..scan.methods import STEREO_METHODS, SURFACES
+from .fields import Options, option
+from .values import boolean, integer, pair, path, positive_float, positive_int
+from .video import MESH_UNITS
+
+
+def depth_range_value(value, flag):
+    return pair(positive_float, "NEAR FAR in calibration units")(value, flag)
+
+
+@dataclass(frozen=True)
+class StereoOptions(Options):
+    """Stereo depth to a metric scan (`stereo`)."""
+
+    calib: str | None = option(None, flag="--calib", coerce=path, group="stereo", help="calibration JSON (needed for -o)")
+    method: str = option("sgbm", flag="--method", choices=STEREO_METHODS, group="stereo",
+                         help="sgbm: semi-global matching with consistency checks (fast, default); sgbm-wls: with the "
+                              "WLS edge-aware filter; graphcut: KZ1-style alpha-expansion (best, about 100x slower)")
+    fill: str = option("background", flag="--fill", choices=("background", "none"), group="stereo",
+                       help="pixels of the disparity map that the checks reject: the background disparity of their "
+                            "row (default) or NaN; the scan uses accepted pixels only")
+    ground_truth: str | None = option(None, flag="--ground-truth", coerce=path, metavar="GT", group="stereo",
+                                      help="ground-truth disparity (.npz .pfm .exr .npy .tif; inf/NaN where unknown): "
+                                           "print the bad-pixel rate of the map (missing pixels count as bad)")
+    bad_threshold: float = option(2.0, flag="--bad-threshold", coerce=positive_float, cli_type=float, metavar="PX",
+                                  group="stereo", help="--ground-truth: a pixel is bad when |d - gt| exceeds this")
+    min_disparity: int | None = option(None, flag="--min-disparity", coerce=integer, cli_type=int, group="stereo",
+                                       help="smallest disparity searched (px)")
+    num_disparities: int | None = option(None, flag="--num-disparities", coerce=positive_int, cli_type=int,
+                                         group="stereo", help="number of disparities searched (default 64)")
+    depth_range: tuple | None = option(None, flag="--depth-range", coerce=depth_range_value, cli_type=float,
+                                       nargs=2, metavar=("NEAR", "FAR"), group="stereo",
+                                       help="depth range in calibration units; sets the disparity range")
+    vertical: bool | None = option(None, flag="--vertical", coerce=boolean, action="store_true", group="stereo",
+                                   help="vertical rig (second camera below the first) when there is no calibration")
+    surface: str = option("grid", flag="--surface", choices=SURFACES, group="stereo",
+                          help="how the scan mesh is made from the depth map")
+    step: int = option(2, flag="--step", coerce=positive_int, cli_type=int, group="stereo",
+                       help="pixel subsampling of the scan mesh")
+    max_cycles: int = option(3, flag="--max-cycles", coerce=positive_int, cli_type=int, group="stereo",
+                             help="graph cut: expansion cycles")
+    time_limit: float | None = option(None, flag="--time-limit", coerce=positive_float, cli_type=float, group="stereo",
+                                      help="graph cut: seconds after which no new expansion starts")
+
+
+@dataclass(frozen=True)
+class DetectOptions(Options):
+    """Haar face detection and AAM landmarks (`detect`)."""
+
+    aam: str | None = option(None, flag="--aam", coerce=path, group="detection",
+                             help="AAM model (.npz, from `usdface landmarks train`)")
+    min_size: int | None = option(None, flag="--min-size", coerce=positive_int, cli_type=int, group="detection",
+                                  help="smallest face side in pixels")
+
+
+@dataclass(frozen=True)
+class LandmarksTrainOptions(Options):
+    """Training an active appearance model (`landmarks train`)."""
+
+    landmarks: str | None = option(None, flag="--landmarks", coerce=path, group="training",
+                                   help="landmarks JSON of a single IMAGE")
+    points_dir: str | None = option(None, flag="--points-dir", coerce=path, group="training",
+                                    help="folder of the point files (default: beside each image)")
+    augment: int | None = option(None, flag="--augment", coerce=integer, cli_type=int, group="training",
+                                 help="jittered copies per image (default 40 with --landmarks, else 0)")
+
+
+@dataclass(frozen=True)
+class RegisterOptions(Options):
+    """Registering the generic face onto a scan (`register`)."""
+
+    landmarks: str | None = option(None, flag="--landmarks", coerce=path, group="registration",
+                                   help="scan landmarks JSON (image or scan points) or a detect features file")
+    generic_landmarks: str | None = option(None, flag="--generic-landmarks", coerce=path, group="registration",
+                                           help="the generic's landmarks (marker layout; default "
+                                                "GENERIC_STEM.landmarks.layout.json beside the generic)")
+    layout: str | None = option(None, flag="--layout", coerce=path, group="registration",
+                                help="the generic's marker layout, carried over")
+    image: str | None = option(None, flag="--image", coerce=path, group="registration",
+                               help="without --landmarks: the first stereo image to detect the landmarks on")
+    aam: str | None = option(None, flag="--aam", coerce=path, group="registration",
+                             help="without --landmarks: AAM model for --image")
+    iterations: int = option(20, flag="--iterations", coerce=positive_int, cli_type=int, group="registration",
+                             help="closest-point iterations")
+    border: bool = option(False, flag="--border", coerce=boolean, group="registration",
+                          help="also match the generic's outer border to the scan's (for scans cropped like the "
+                               "generic)")
+    field: int = option(0, flag="--field", coerce=integer, cli_type=int, metavar="N", group="registration",
+                        help="iterations of the smooth-field stage before the projection (8 with --border for scans "
+                             "cropped like the generic)")
+
+
+@dataclass(frozen=True)
+class ShapesTransferOptions(Options):
+    """Carrying a generic blend-shape rig onto a face (`shapes transfer`)."""
+
+    generic: str | None = option(None, flag="--generic", coerce=path, group="registration",
+                                 help="generic rig: a USD mesh with blend shapes, or a neutral mesh with "
+                                      "--generic-shapes (default: the MakeHuman rig shipped with usdface)")
+    generic_shapes: str | None = option(None, flag="--generic-shapes", coerce=path, metavar="DIR|NPZ|RIG.usd",
+                                        group="registration", help="the generic neutral's shapes")
+    generic_landmarks: str | None = option(None, flag="--generic-landmarks", coerce=path, group="registration",
+                                           help="the generic's landmarks (marker layout)")
+    method: str = option("displacement", flag="--method", choices=("displacement", "deformation"),
+                         group="registration",
+                         help="offsets rotated and scaled with the face (default), or deformation transfer "
+                              "(Sumner & Popovic 2004) following the target's local shape")
+    border: bool = option(True, flag="--no-border", coerce=boolean, group="registration",
+                          help="do not match the outer borders (for targets not cropped like the generic)")
+    field: int = option(8, flag="--field", coerce=integer, cli_type=int, metavar="N", group="registration",
+                        help="registration smooth-field iterations")
+    iterations: int = option(20, flag="--iterations", coerce=positive_int, cli_type=int, group="registration",
+                             help="registration closest-point iterations")
+    mesh_units: str | None = option(None, flag="--mesh-units", choices=MESH_UNITS, group="mesh",
+                                    help="units of mesh files")

@@ -1,0 +1,67 @@
+"""Options of `usdface evaluate`: transfer quality against ground-truth expression shapes."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import OptionError
+from .fields import Options, option
+from .values import boolean, nonnegative_float, path, positive_float, shown, unit_interval
+from .video import MESH_UNITS
+
+
+def names_value(value, flag):
+    """One or more words (``--methods euclidean hybrid``; commas split too)."""
+    if value is None:
+        return None
+    items = [value] if isinstance(value, str) else list(value)
+    if not all(isinstance(v, (str, int, float)) for v in items):
+        raise OptionError(f"{flag} {shown(value)}: expected names")
+    return tuple(str(v) for v in items)
+
+
+@dataclass(frozen=True)
+class EvaluateOptions(Options):
+    """Which transfers `evaluate` measures against the ground-truth shapes, and how."""
+
+    layout: str | None = option(None, flag="--layout", coerce=path, group="markers",
+                                help="marker layout JSON (usdface-layout/1)")
+    binding: str | None = option(None, flag="--binding", coerce=path, group="markers",
+                                 help="binding layer (from `usdface bind`)")
+    units: str | None = option(None, flag="--units", choices=MESH_UNITS, group="mesh",
+                               help="units of a mesh file (default cm)")
+    methods: tuple | None = option(None, flag="--methods", coerce=names_value, nargs="+", metavar="M",
+                                   group="transfers", help="euclidean geodesic hybrid (default: all)")
+    modes: tuple | None = option(None, flag="--modes", coerce=names_value, nargs="+", metavar="MODE",
+                                 group="transfers", help="paper interpolate (default: both)")
+    pins: tuple | None = option(None, flag="--pins", coerce=names_value, nargs="+", metavar="PIN", group="transfers",
+                                help="pinned border variants for interpolate mode: border (whole outer border, the "
+                                     "pipeline default), none, upper (border above the mouth corners); default: all "
+                                     "three")
+    widths: tuple | None = option(None, flag="--widths", coerce=names_value, nargs="+", metavar="W",
+                                  group="transfers",
+                                  help="kernel widths: 'default' (1.1 x the Euclidean median marker spacing, as "
+                                       "`usdface run`) and/or cm values; default: default 2")
+    backend: str = option("graph", flag="--backend", choices=("graph", "heat", "exact"), group="transfers",
+                          help="geodesic back-end")
+    heat: bool = option(False, flag="--heat", coerce=boolean, group="transfers",
+                        help="add a geodesic/heat interpolate row")
+    thin_plate: bool = option(False, flag="--thin-plate", coerce=boolean, group="transfers",
+                              help="add thin-plate spline + polynomial rows")
+    only: tuple | None = option(None, flag="--only", coerce=names_value, nargs="+", metavar="NAME", group="shapes",
+                                help="evaluate only these shapes (names or glob patterns)")
+    skip: tuple | None = option(None, flag="--skip", coerce=names_value, nargs="+", metavar="NAME", group="shapes",
+                                help="skip these shapes (names or glob patterns)")
+    min_displacement: float = option(0.1, flag="--min-displacement", coerce=nonnegative_float, cli_type=float,
+                                     metavar="CM", group="shapes",
+                                     help="skip shapes whose largest displacement is below this (cm)")
+    region_radius: float = option(1.5, flag="--region-radius", coerce=positive_float, cli_type=float, metavar="CM",
+                                  group="regions",
+                                  help="mouth / eye error regions: vertices within this of the hole loops (cm)")
+    hybrid_radius: float = option(1.0, flag="--hybrid-radius", coerce=nonnegative_float, cli_type=float,
+                                  metavar="CM", group="regions", help="hybrid region radius (cm)")
+    sigma: float = option(2.0, flag="--sigma", coerce=positive_float, cli_type=float, metavar="CM", group="regions",
+                          help="hybrid weight width (cm)")
+    threshold: float = option(0.6, flag="--threshold", coerce=unit_interval, cli_type=float, group="regions",
+                              help="hybrid: geodesic term skipped where w <= this")
+    no_per_shape: bool = option(False, flag="--no-per-shape", coerce=boolean, group="report",
+                                help="leave the per-shape table out")

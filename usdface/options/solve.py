@@ -1,0 +1,81 @@
+"""Options of the blend-shape solve (`solve`, `run --output-kind blendshapes`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import OptionError
+from .binding import BindOptions
+from .capture import UNITS, CaptureOptions, stabilize_value
+from .fields import Options, option
+from .values import boolean, nonnegative_float, path, positive_float, positive_int, shown
+
+
+def patterns_value(value, flag):
+    """Comma-separated shape-name globs; 'none' (or empty) for no pattern."""
+    if value is None:
+        return ()
+    if isinstance(value, str):
+        value = [] if value.strip().lower() in ("", "none") else value.split(",")
+    if not isinstance(value, (list, tuple)):
+        raise OptionError(f"{flag} {shown(value)}: expected comma-separated shape names or globs, or 'none'")
+    return tuple(str(v).strip() for v in value if str(v).strip())
+
+
+@dataclass(frozen=True)
+class BlendshapeOptions(Options):
+    """The rig's shapes, the solver's settings and the curves delivered (`solve`, `run --output-kind
+    blendshapes`)."""
+
+    shapes: str | None = option(None, flag="--shapes", coerce=path, metavar="DIR|NPZ|RIG.usd",
+                                group="blend-shape solve",
+                                help="the rig's shapes for a neutral mesh: a folder of <shape>.obj, an .npz (names, "
+                                     "deltas[, neutral]) or a USD rig (not needed when the mesh is a USD mesh with "
+                                     "UsdSkel blend shapes)")
+    smoothing: float = option(6.0, flag="--smoothing", coerce=nonnegative_float, metavar="HZ",
+                              group="blend-shape solve", help="temporal smoothness cut-off in Hz (0: none)")
+    sparsity: float = option(0.01, flag="--sparsity", coerce=nonnegative_float, metavar="BETA",
+                             group="blend-shape solve", help="L1 weight picking few shapes per frame, cm^2")
+    symmetry: float = option(0.05, flag="--symmetry", coerce=nonnegative_float, metavar="GAMMA",
+                             group="blend-shape solve",
+                             help="left/right prior on ...Left/...Right pairs whose deltas mirror each other (0: none)")
+    exclude: tuple = option(("eyeLook*", "tongueOut"), flag="--exclude", coerce=patterns_value, metavar="PATTERNS",
+                            group="blend-shape solve",
+                            help="shapes held at 0, comma-separated globs (markers see neither gaze nor tongue; "
+                                 "'none' solves every shape)")
+    refit: bool = option(True, flag="--no-refit", coerce=boolean, group="blend-shape solve",
+                         help="skip the second pass that refits the active shapes without the sparsity shrinkage")
+    max_iterations: int = option(300, flag="--max-iterations", coerce=positive_int, metavar="N",
+                                 group="blend-shape solve", help="ADMM iterations at most")
+    tolerance: float = option(2e-3, flag="--tolerance", coerce=positive_float, metavar="CM",
+                              group="blend-shape solve", help="ADMM stopping tolerance (cm)")
+    fps: float | None = option(None, flag="--fps", coerce=positive_float, metavar="FPS", group="curves",
+                               help="deliver the curves at this rate (24, 25, 30...) instead of the capture's")
+    key_tolerance: float | None = option(None, flag="--key-tolerance", coerce=nonnegative_float, metavar="W",
+                                         group="curves",
+                                         help="reduce keys: each curve stays within W (weight units) of the solved one")
+    livelink_fill_zeros: bool = option(False, flag="--livelink-fill-zeros", coerce=boolean, group="curves",
+                                       help="Live Link CSV: zeros for ARKit shapes the rig lacks (default: an error "
+                                            "naming them)")
+
+    def solver_kwargs(self) -> dict:
+        """The keyword arguments of the solver (usdface.processors.solve.solver_defaults)."""
+        return dict(smoothing_hz=self.smoothing or None, sparsity=self.sparsity, symmetry=self.symmetry,
+                    exclude=self.exclude, refit=self.refit, max_iterations=self.max_iterations,
+                    tolerance=self.tolerance)
+
+
+@dataclass(frozen=True)
+class SolveOptions(CaptureOptions, BindOptions, BlendshapeOptions):
+    """Everything `usdface solve` takes besides its inputs and outputs: the capture's conditioning,
+    the binding, the rig's shapes and the solve (its options are `run`'s of the same names)."""
+
+    mesh_units: str | None = option(None, flag="--mesh-units", choices=UNITS, group="mesh",
+                                    help="units of the mesh file (OBJ has none: cm)")
+    stabilize: Any = option("auto", flag="--stabilize", coerce=stabilize_value, metavar="auto|M1,M2,...", nargs="?",
+                            const="auto", negate="--no-stabilize", group="capture reading and conditioning",
+                            help="remove rigid head motion: 'auto' picks the most rigid markers, or name them; "
+                                 "--no-stabilize keeps the head motion in the marker displacements")
+    head_motion: bool = option(True, flag="--no-head-motion", coerce=boolean, group="deliverables",
+                               help="drop the head motion removed by stabilisation (by default the curves layer "
+                                    "carries it as a time-sampled transform on the face's root prim /Face)")
