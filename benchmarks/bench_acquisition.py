@@ -208,7 +208,7 @@ def detection_and_aam(results, quick):
 
 def _subdivide(mesh, n: int = 2):
     """Split every quad into n x n quads (bilinear; the surface outline and holes are kept)."""
-    from usdface.mesh.model import FaceMesh
+    from usdface.model.mesh import FaceMesh
 
     assert (mesh.face_vertex_counts == 4).all()
     q = mesh.face_vertex_indices.reshape(-1, 4)

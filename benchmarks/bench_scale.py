@@ -56,31 +56,26 @@ def main() -> int:
         print(f"wrote {obj}: {len(p)} vertices, {len(t)} triangles, {obj.stat().st_size / 1e6:.0f} MB "
               f"({time.perf_counter() - t0:.0f} s)")
         del p, t
-    import usdface.processors as procs
-    from usdface.processors import bind, distances, import_capture, import_mesh, transfer
-    from usdface.processors.run import run
+    from usdface import api, registry
 
     rows = []
+    call = registry.call
 
-    def measured(module, name):
-        fn = getattr(module, name)
+    def measured(name, *a, **k):
+        """Every step `run` calls through the registry, timed with its memory."""
+        if name == "run":
+            return call(name, *a, **k)
+        reset_peak()
+        before = status_mb("VmRSS")
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            return call(name, *a, **k)
+        finally:
+            rows.append((name, time.perf_counter() - t0, time.process_time() - c0, before, status_mb("VmHWM")))
+            print(f"  {name:15s} {rows[-1][1]:8.1f} s wall {rows[-1][2]:8.1f} s CPU   RSS before "
+                  f"{before:7.0f} MB, peak {rows[-1][4]:7.0f} MB", flush=True)
 
-        def wrapper(*a, **k):
-            reset_peak()
-            before = status_mb("VmRSS")
-            t0, c0 = time.perf_counter(), time.process_time()
-            try:
-                return fn(*a, **k)
-            finally:
-                rows.append((name, time.perf_counter() - t0, time.process_time() - c0, before, status_mb("VmHWM")))
-                print(f"  {name:15s} {rows[-1][1]:8.1f} s wall {rows[-1][2]:8.1f} s CPU   RSS before "
-                      f"{before:7.0f} MB, peak {rows[-1][4]:7.0f} MB", flush=True)
-        setattr(module, name, wrapper)
-
-    for module, name in ((import_mesh, "import_mesh"), (import_capture, "import_capture"), (bind, "bind"),
-                         (distances, "distances"), (transfer, "transfer")):
-        measured(module, name)
-    del procs
+    registry.call = measured
     capture = REPO.parent / "shared" / "data" / "animface" / "JawMoCap.ma"
     if not capture.is_file():
         capture = SAMPLES / "capture" / "JawMoCap.ma"
@@ -92,14 +87,11 @@ def main() -> int:
           f"--trim {args.trim[0]} {args.trim[1]} --method {args.method}"
           f"{' --backend ' + args.backend if args.backend else ''}:")
     t0, c0 = time.perf_counter(), time.process_time()
-    try:
-        summary = run(str(obj), str(capture), str(out / "shot"), options)
-    except TypeError:       # usdface before the options object: keyword options
-        summary = run(str(obj), str(capture), str(out / "shot"), **options)
+    result = api.run(str(obj), str(capture), options, output=str(out / "shot"))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     print(f"  {'whole run':15s} {wall:8.1f} s wall {cpu:8.1f} s CPU   peak RSS of the process "
           f"{max(r[4] for r in rows):.0f} MB")
-    for line in summary.get("_text", []):
+    for line in result.text:
         print("  " + line)
     sizes = {f.name: f.stat().st_size for f in (out / "shot").iterdir() if f.is_file()}
     print("outputs: " + ", ".join(f"{k} {v / 1e6:.0f} MB" for k, v in sorted(sizes.items())))

@@ -39,7 +39,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from usdface.io.meshes import read_mesh  # noqa: E402
-from usdface.mesh.model import FaceMesh  # noqa: E402
+from usdface.model.mesh import FaceMesh  # noqa: E402
 from usdface.mesh.topology import find_hole_regions  # noqa: E402
 from usdface.tissue import _kernels as kn  # noqa: E402
 from usdface.tissue.animate import animate  # noqa: E402

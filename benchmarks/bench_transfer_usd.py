@@ -190,7 +190,7 @@ def process_level(args, work: Path) -> dict:
 
 def grid_face(n_side: int):
     """A curved quad grid standing in for a dense face scan (cm), and 41 marker points on it."""
-    from usdface.mesh.model import FaceMesh
+    from usdface.model.mesh import FaceMesh
 
     u, v = np.meshgrid(np.linspace(-8, 8, n_side), np.linspace(-10, 10, n_side))
     z = 6.0 * np.cos(u / 10.0) * np.cos(v / 14.0)

@@ -69,7 +69,8 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=12)
     args = ap.parse_args()
     os.environ.update({k: v for k, v in ENV.items() if k.endswith("_THREADS")})
-    from usdface.shot_commit import KILL_ENV, LOCK_NAME, commit_steps, interrupted_commit, leftovers
+    from usdface.pipeline.shot_commit import KILL_ENV, LOCK_NAME, commit_steps
+    from usdface.usd.shot_record import interrupted_commit, leftovers
 
     root = Path(args.out)
     shutil.rmtree(root, ignore_errors=True)

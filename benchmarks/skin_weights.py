@@ -51,12 +51,7 @@ KS = (4, 8, None)
 def _cli(*args) -> None:
     import usdface.cli as cli
 
-    saved = cli.PLUGIN_COMMANDS
-    cli.PLUGIN_COMMANDS = saved + tuple(m for m in ("usdface.processors.skel",) if m not in saved)
-    try:
-        code = cli.main([str(a) for a in args] + ["-q"])
-    finally:
-        cli.PLUGIN_COMMANDS = saved
+    code = cli.main([str(a) for a in args] + ["-q"])
     if code != 0:
         raise SystemExit(f"usdface {' '.join(map(str, args))} failed ({code})")
 

@@ -16,8 +16,8 @@ import pytest
 
 from usdface.errors import Interrupted, LockedError
 from usdface.fileutil import HOST_TAG, file_digest
-from usdface.shot_commit import (KILL_ENV, LOCK_NAME, MARKER_NAME, OutdirLock, ShotSession, commit_order,
-                                 commit_steps, interrupted_commit, leftovers, tidy)
+from usdface.pipeline.shot_commit import KILL_ENV, LOCK_NAME, OutdirLock, ShotSession, commit_order, commit_steps, tidy
+from usdface.usd.shot_record import MARKER_NAME, interrupted_commit, leftovers
 from usdface.usd.validation import check_layer
 
 SA = Path(__file__).resolve().parents[1] / "sample_assets"
@@ -48,7 +48,7 @@ def test_lock_refuses_a_second_writer_and_names_the_first(tmp_path):
 
 
 def test_lock_in_another_process(tmp_path):
-    code = ("import sys, time; from usdface.shot_commit import OutdirLock; l = OutdirLock(sys.argv[1]); "
+    code = ("import sys, time; from usdface.pipeline.shot_commit import OutdirLock; l = OutdirLock(sys.argv[1]); "
             "l.acquire(); print('locked', flush=True); time.sleep(60)")
     p = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE, text=True)
     try:
@@ -120,7 +120,7 @@ def test_commit_order_and_stale_files(tmp_path):
 
 
 def test_sigterm_during_a_commit_waits_for_its_end(tmp_path, monkeypatch):
-    import usdface.shot_commit as sc
+    import usdface.pipeline.shot_commit as sc
 
     def on_step(name):
         if name == "rename:mesh.usdc":
@@ -162,7 +162,7 @@ def two_shots(tmp_path_factory):
 _KILLED_COMMIT = """
 import shutil, sys
 from pathlib import Path
-from usdface.shot_commit import ShotSession
+from usdface.pipeline.shot_commit import ShotSession
 out, new, run_id, files = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3], sys.argv[4].split(",")
 s = ShotSession(out, run_id)
 work = s.open()
@@ -212,7 +212,7 @@ def test_folder_and_nested_deliverables_are_committed_and_checked(tmp_path):
     """Other deliverables (a playblast's frames in a folder, a file in a subfolder) commit like layers."""
     from pxr import Sdf
 
-    from usdface.shot_commit import shot_record, verify_shot
+    from usdface.usd.shot_record import shot_record, verify_shot
 
     out = tmp_path / "out"
     out.mkdir()

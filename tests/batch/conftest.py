@@ -11,14 +11,6 @@ TAKES = ("JawMoCap", "NoseMoCap", "EyebrowsMoCap")
 MESHES = {"makehuman_hm08_face_cm": "makehuman_hm08_face", "mediapipe_canonical_face_model_holes": "mediapipe_face_holes"}
 
 
-@pytest.fixture(scope="session", autouse=True)
-def batch_command():
-    """`usdface batch` in-process, whether or not cli.PLUGIN_COMMANDS lists it yet."""
-    if "usdface.processors.batch" not in cli.PLUGIN_COMMANDS:
-        cli.PLUGIN_COMMANDS = cli.PLUGIN_COMMANDS + ("usdface.processors.batch",)
-    yield
-
-
 def write_manifest(folder: Path, sample_assets: Path, *, broken: bool = True, trim=(0, 120), extra: str = "",
                    batch: str = "") -> Path:
     """2 meshes x 3 takes (+ one broken take on the first mesh)."""

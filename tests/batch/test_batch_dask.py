@@ -4,6 +4,8 @@ distances computed once per mesh and binding, and a --resume run that does nothi
 manifest on the default LocalCluster with no options."""
 from __future__ import annotations
 
+from usdface.options import BatchOptions
+
 import json
 import os
 import shutil
@@ -117,7 +119,7 @@ def test_farm_matches_serial_caches_and_resumes(tmp_path, make_manifest, dask_fa
             assert a == b, f"{rel}/{name} differs between serial and farm runs"
     # and to a plain `usdface run` of the same shot (no cache) with one BLAS thread; with the
     # machine's default BLAS threads the float32 GEMM sums in another order: last-bit differences
-    from usdface.batch.runner import single_threaded
+    from usdface.pipeline.batch.runner import single_threaded
 
     shot = next(r for r in ok if r["name"] == "makehuman_hm08_face_cm/JawMoCap")
     sa = Path(shot["mesh"]).parents[1]
@@ -153,19 +155,19 @@ def test_farm_matches_serial_caches_and_resumes(tmp_path, make_manifest, dask_fa
 
 
 def test_resume_redoes_changed_and_tampered_shots(tmp_path, make_manifest):
-    from usdface.batch import load_manifest, run_batch
+    from usdface.pipeline.batch import load_manifest, run_batch
 
     p = make_manifest(tmp_path, broken=False, trim=(0, 40))
     m = load_manifest(p)
     m.shots = m.shots[:3]
-    assert run_batch(m, workers=0, quiet=True)["counts"]["ok"] == 3
+    assert run_batch(m, BatchOptions(workers=0))["counts"]["ok"] == 3
     # tamper with one shot's analysis layer, change another's options
     a = Path(m.shots[0].output) / "analysis.usdc"
     a.write_bytes(a.read_bytes() + b"\0")
     m.shots[1].options["threshold"] = 0.5
-    s = run_batch(m, workers=0, resume=True, quiet=True)
+    s = run_batch(m, BatchOptions(workers=0, resume=True))
     assert [r["status"] for r in s["shots"]] == ["ok", "ok", "skipped"]
-    s = run_batch(m, workers=0, resume=True, force=True, quiet=True)
+    s = run_batch(m, BatchOptions(workers=0, resume=True, force=True))
     assert [r["status"] for r in s["shots"]] == ["ok", "ok", "ok"]
 
 
@@ -195,7 +197,7 @@ def test_unreachable_scheduler_fails_fast(tmp_path, make_manifest, capsys):
 
 def test_example_manifest_runs_as_written(repo_root, tmp_path):
     example = repo_root / "sample_assets" / "batch" / "example.toml"
-    from usdface.batch import load_manifest
+    from usdface.pipeline.batch import load_manifest
 
     m = load_manifest(example, out_root=tmp_path)
     assert len(m.shots) == 6 and {Path(s.mesh).name for s in m.shots} == {

@@ -1,6 +1,8 @@
 """The content-addressed cache: atomic entries, racing writers, a full disk, corrupt entries."""
 from __future__ import annotations
 
+from usdface.options import BatchOptions
+
 import errno
 import shutil
 import threading
@@ -8,7 +10,7 @@ import threading
 import numpy as np
 import pytest
 
-from usdface.batch.cache import ContentCache, content_key
+from usdface.cache import ContentCache, content_key
 from usdface.errors import ResourceError
 
 
@@ -86,14 +88,14 @@ def test_corrupt_entry_is_a_miss_and_removed(tmp_path):
 
 def test_full_cache_fails_the_shot_clearly(tmp_path, make_manifest, monkeypatch):
     """A shot whose cache write hits a full disk fails with the cache's message; the others go on."""
-    from usdface.batch import load_manifest, run_batch
-    from usdface.batch import cache as cache_mod
+    from usdface.pipeline.batch import load_manifest, run_batch
+    from usdface import cache as cache_mod
 
     real = shutil.disk_usage
     monkeypatch.setattr(cache_mod.shutil, "disk_usage", lambda p: real(p)._replace(free=10_000))
     m = load_manifest(make_manifest(tmp_path, broken=False, trim=(0, 30)))
     m.shots = m.shots[:2]
-    s = run_batch(m, workers=0, quiet=True)
+    s = run_batch(m, BatchOptions(workers=0))
     assert [r["status"] for r in s["shots"]] == ["failed", "failed"]
     assert "too little free space" in s["shots"][0]["error"]
     assert ContentCache(m.cache).entries() == []

@@ -1,13 +1,15 @@
 """Manifest parsing: keys, globs, placeholders, and bad input reported before any work."""
 from __future__ import annotations
 
+from usdface.options import BatchOptions
+
 import os
 
 from pathlib import Path
 
 import pytest
 
-from usdface.batch.manifest import key_line, load_manifest
+from usdface.pipeline.batch.manifest import key_line, load_manifest
 from usdface.errors import FormatError, InputError
 
 
@@ -91,7 +93,7 @@ def test_outputs_must_differ(tmp_path, make_manifest):
 
 
 def test_video_capture_is_tracked_lifted_and_transferred(tmp_path, sample_assets):
-    from usdface.batch.runner import run_batch
+    from usdface.pipeline.batch.runner import run_batch
 
     v = sample_assets / "video"
     p = tmp_path / "video.toml"
@@ -101,7 +103,7 @@ def test_video_capture_is_tracked_lifted_and_transferred(tmp_path, sample_assets
                  f'output = "out/{{capture}}"\n')
     m = load_manifest(p)
     assert m.shots[0].is_video
-    s = run_batch(m, workers=0, quiet=True)
+    s = run_batch(m, BatchOptions(workers=0))
     assert s["shots"][0]["status"] == "ok", s["shots"][0]["error"]
     out = Path(s["shots"][0]["output"])
     assert (out / "tracks.usdc").is_file() and (out / "anim.usdc").is_file()

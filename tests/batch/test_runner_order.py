@@ -2,8 +2,8 @@
 went (seconds per step)."""
 from __future__ import annotations
 
-from usdface.batch.manifest import Shot
-from usdface.batch.runner import shot_cost, step_times, summary_table
+from usdface.pipeline.batch.manifest import Shot
+from usdface.pipeline.batch.runner import shot_cost, step_times, summary_table
 
 
 def test_longest_shots_first(tmp_path):
@@ -40,17 +40,17 @@ def test_summary_table_shows_seconds_per_step():
     assert step_times(None) == "-" and step_times({"run": None}) == ""
 
 
-def test_step_clock_times_the_processors_and_restores_them():
+def test_timed_calls_time_the_processors_called_through_the_registry():
     import pytest
 
-    from usdface.batch.runner import step_clock
+    from usdface import registry
     from usdface.errors import UsdFaceError
-    from usdface.processors import bind as bind_module
+    from usdface.options import BindOptions
 
-    original = bind_module.bind
-    with step_clock() as times:
-        assert bind_module.bind is not original and bind_module.bind.__wrapped__ is original
+    with registry.timed_calls() as times:
         with pytest.raises(UsdFaceError):        # a failing step is timed too
-            bind_module.bind("/nonexistent/mesh.usdc", "/nonexistent/capture.usdc", "/tmp/x.usda", auto=True)
-    assert bind_module.bind is original
+            registry.call("bind", "/nonexistent/mesh.usdc", "/nonexistent/capture.usdc",
+                          options=BindOptions(auto=True), output="/tmp/x.usda")
     assert set(times) == {"bind"} and times["bind"] >= 0.0
+    registry.call("plugin-path")  # outside the block: not timed
+    assert set(times) == {"bind"}

@@ -71,7 +71,7 @@ def test_obj_folder_rig_and_its_errors(makehuman, tmp_path):
     _write_obj(folder / "browInnerUp.obj", mesh, np.vstack([mesh.points, [[0.0, 0.0, 0.0]]]))
     with pytest.raises(MeshError, match="shape 'browInnerUp'.*another topology: 2021 vertices"):
         load_mesh_folder_rig(folder, mesh)
-    from usdface.mesh.model import FaceMesh
+    from usdface.model.mesh import FaceMesh
 
     fewer = FaceMesh(mesh.points, mesh.face_vertex_counts[:-1], mesh.face_vertex_indices[:-int(mesh.face_vertex_counts[-1])])
     _write_obj(folder / "browInnerUp.obj", fewer, mesh.points)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from usdface.capture.filtering import filter_array, filter_noise
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.errors import OptionError
 
 RATE = 60.0

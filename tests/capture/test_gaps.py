@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from usdface.capture.gaps import fill_gaps, find_gaps
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.errors import OptionError
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.capture.neutral import choose_neutral, set_neutral
 from usdface.errors import OptionError
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.capture.rigid import rotation_angle
 from usdface.capture.stabilize import rank_rigid_markers, residual_rigid_motion, stabilize
 from usdface.errors import MarkerError, OptionError

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.capture.swaps import SwapEvent, default_min_jump, detect_swaps, fix_swaps
 from usdface.errors import MarkerError, OptionError
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.capture.rigid import rotation_angle, to_matrix
 from usdface.capture.timing import offset, resample, trim
 from usdface.errors import OptionError

@@ -48,11 +48,9 @@ def test_evaluate_command_writes_the_table(paths, tmp_path, capsys):
 
 
 def test_evaluate_through_the_usdface_command(paths, tmp_path, monkeypatch, capsys):
-    """`usdface evaluate` via usdface.cli.main (registered in PLUGIN_COMMANDS, or added here if not yet)."""
+    """`usdface evaluate` via usdface.cli.main."""
     from usdface import cli
 
-    if "usdface.processors.evaluate" not in cli.PLUGIN_COMMANDS:
-        monkeypatch.setattr(cli, "PLUGIN_COMMANDS", tuple(cli.PLUGIN_COMMANDS) + ("usdface.processors.evaluate",))
     rc = cli.main(["evaluate", "--mesh", str(paths["mesh"]), "--shapes", str(paths["shapes"]), "--layout",
                    str(paths["layout"]), "--only", "jawOpen", "--methods", "euclidean", "--modes", "paper", "--json"])
     assert rc == 0

@@ -9,7 +9,7 @@ import ezc3d
 import numpy as np
 import pytest
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.errors import FormatError, InputError, MarkerError, OptionError
 from usdface.io.c3d import read_c3d, write_c3d
 from usdface.io.maya_ascii import read_maya_ascii

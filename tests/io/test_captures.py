@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.errors import FormatError, InputError, MarkerError, OptionError
 from usdface.io.captures import (
     CAPTURE_SUFFIXES, WRITABLE_CAPTURE_SUFFIXES, read_capture, write_capture, y_up_to_z_up, z_up_to_y_up,

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.errors import FormatError, InputError, MarkerError, OptionError
 from usdface.io.csv_format import read_csv, write_csv
 from usdface.io.maya_ascii import read_maya_ascii

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.capture.rigid import from_matrix, to_matrix
 from usdface.errors import MarkerError, MeshError, OptionError
 from usdface.io.meshes import read_mesh
@@ -20,7 +20,7 @@ from usdface.mesh.binding import (
 )
 from usdface.mesh.closest import SurfaceLocator
 from usdface.mesh.layout import Layout, LayoutMarker, read_layout
-from usdface.mesh.model import Binding
+from usdface.model.mesh import Binding
 from usdface.mesh.topology import find_hole_regions
 
 SAMPLES = {

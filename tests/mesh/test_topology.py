@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from usdface.io.meshes import read_mesh
-from usdface.mesh.model import FaceMesh
+from usdface.model.mesh import FaceMesh
 from usdface.mesh.topology import (
     boundary_edges,
     boundary_loops,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from usdface.io.meshes import read_mesh
-from usdface.mesh.model import FaceMesh
+from usdface.model.mesh import FaceMesh
 from usdface.mesh.topology import border_surface, boundary_loops, find_hole_regions
 
 HM08 = "makehuman_hm08_face_cm.obj"

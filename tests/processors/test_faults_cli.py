@@ -22,7 +22,8 @@ import pytest
 
 from usdface.cli import main
 from usdface.fileutil import FAULT_ENV, file_digest
-from usdface.shot_commit import KILL_ENV, LOCK_NAME, OutdirLock, leftovers
+from usdface.pipeline.shot_commit import KILL_ENV, LOCK_NAME, OutdirLock
+from usdface.usd.shot_record import leftovers
 
 SA = Path(__file__).resolve().parents[2] / "sample_assets"
 MESH = SA / "meshes" / "makehuman_hm08_face_cm.obj"
@@ -232,7 +233,7 @@ import json, os, sys
 from pathlib import Path
 from usdface.cli import main
 from usdface.fileutil import file_digest
-from usdface.shot_commit import leftovers
+from usdface.usd.shot_record import leftovers
 import contextlib, io
 root, run = Path(sys.argv[1]), json.loads(sys.argv[2])
 def call(argv):

@@ -151,7 +151,7 @@ def test_binding_and_capture_with_different_marker_sets(runs, tmp_path, capsys, 
     from usdface.processors.import_capture import import_capture
 
     # a capture of the same take without the Chin marker
-    from usdface.capture.model import Capture
+    from usdface.model.capture import Capture
     from usdface.usd.capture_layer import write_capture_layer
 
     cap = read_capture_layer(d / "capture.usdc")
@@ -168,7 +168,7 @@ def test_binding_and_capture_with_different_marker_sets(runs, tmp_path, capsys, 
 
 
 def test_all_markers_invalid_in_a_frame_is_named(runs, tmp_path, capsys, cli):
-    from usdface.capture.model import Capture
+    from usdface.model.capture import Capture
     from usdface.usd.capture_layer import write_capture_layer
 
     d = runs["hm08", "euclidean"]
@@ -230,12 +230,16 @@ def test_mesh_without_units_is_refused(runs, tmp_path, capsys, cli):
     assert "units" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("bad", [0, -5, 2.7, None, True])
-def test_chunk_frames_is_checked_before_any_work(bad, tmp_path):
-    from usdface.errors import OptionError
-    from usdface.processors.transfer import transfer
+@pytest.mark.parametrize("bad", [0, -5, 2.7, True])
+def test_chunk_frames_is_checked_before_any_work(bad):
+    """The transfer's chunk size (a solver setting since 0.3: the processor streams 64-frame chunks)
+    is checked before the solver computes anything."""
+    import numpy as np
 
+    from usdface.errors import OptionError
+    from usdface.rbf.transfer import RBFTransfer
+
+    d = np.array([[0.0, 1.0], [1.0, 0.0], [0.5, 0.5]])
+    solver = RBFTransfer(d, d[:2], n_markers=2, widths=1.0).fit()
     with pytest.raises(OptionError, match="chunk_frames: expected an integer >= 1"):
-        transfer(tmp_path / "m.usdc", tmp_path / "c.usdc", tmp_path / "b.usda", tmp_path / "a.usdc",
-                 tmp_path / "out.usdc", chunk_frames=bad)
-    assert list(tmp_path.iterdir()) == []
+        next(iter(solver.iter_chunks(np.zeros((4, 2, 3)), chunk_frames=bad)))

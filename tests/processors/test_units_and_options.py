@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from usdface.capture.model import Capture
+from usdface.model.capture import Capture
 from usdface.io.csv_format import write_csv
 from usdface.io.maya_ascii import read_maya_ascii
 from usdface.usd.capture_layer import read_capture_layer, write_capture_layer

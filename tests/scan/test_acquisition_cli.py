@@ -6,15 +6,6 @@ import pytest
 
 from usdface import cli
 
-MODULE = "usdface.processors.acquisition"
-
-
-@pytest.fixture(autouse=True)
-def _plugin(monkeypatch):
-    if MODULE not in cli.PLUGIN_COMMANDS:
-        monkeypatch.setattr(cli, "PLUGIN_COMMANDS", tuple(cli.PLUGIN_COMMANDS) + (MODULE,))
-
-
 def run(*args):
     return cli.main([str(a) for a in args])
 

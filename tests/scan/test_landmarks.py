@@ -74,7 +74,7 @@ def test_mesh_face_landmarks_symmetric(sample_assets):
 
 
 def test_mesh_without_holes():
-    from usdface.mesh.model import FaceMesh
+    from usdface.model.mesh import FaceMesh
 
     m = FaceMesh(points=[[0, 0, 0], [1, 0, 0], [0, 1, 0]], face_vertex_counts=[3], face_vertex_indices=[0, 1, 2])
     with pytest.raises(MeshError, match="leftEye"):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from usdface.io.meshes import read_mesh
-from usdface.mesh.model import FaceMesh
+from usdface.model.mesh import FaceMesh
 from usdface.mesh.topology import find_hole_regions
 from usdface.tissue.animate import animate
 from usdface.tissue.expressions import PRESET_NAMES, expression_timeline

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from usdface.errors import MeshError, OptionError
-from usdface.mesh.model import FaceMesh
+from usdface.model.mesh import FaceMesh
 from usdface.tissue.model import (SPRING_KINDS, TissueOptions, build_tissue_model, inconsistent_faces, prism_volumes,
                                   triangle_edges)
 

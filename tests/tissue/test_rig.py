@@ -83,7 +83,7 @@ def test_rig_carries_over_to_the_stylized_face(faces):
 
 
 def test_mesh_without_holes_is_refused(face):
-    from usdface.mesh.model import Region
+    from usdface.model.mesh import Region
 
     with pytest.raises(MeshError, match="open eyes and mouth"):
         default_rig(face.mesh, [Region("outerBorder", "outerBorder", [0, 1, 2], loop=[0, 1, 2])])

@@ -13,9 +13,7 @@ from usdface.usd.muscle_layer import read_animation_points, read_contractions, r
 
 @pytest.fixture
 def tissue_cli(monkeypatch):
-    """The usdface command with the tissue subcommands registered (as the lead wires them)."""
-    monkeypatch.setattr(cli, "PLUGIN_COMMANDS", ("usdface.processors.tissue",))
-
+    """The usdface command, in-process."""
     def run(*argv):
         return cli.main([str(a) for a in argv])
     return run

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, InputError, MeshError, list_names
-from ..mesh.model import Binding, FaceMesh
+from ..model.mesh import Binding, FaceMesh
 
 __all__ = ["BlendShapeRig", "load_npz_rig", "load_mesh_folder_rig", "check_neutral", "marker_basis",
            "NEUTRAL_TOLERANCE"]

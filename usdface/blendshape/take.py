@@ -94,9 +94,9 @@ def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | No
     ----------
     rig : BlendShapeRig
         On the mesh the binding was made for.
-    capture : usdface.capture.model.Capture
+    capture : usdface.model.capture.Capture
         Conditioned (stabilised unless the caller chose not to).
-    binding : usdface.mesh.model.Binding
+    binding : usdface.model.mesh.Binding
     smoothing_hz, sparsity, symmetry, refit, max_iterations, tolerance
         The solver's options (:class:`usdface.blendshape.solver.CurveSolver`); sparsity and
         symmetry are in cm^2 / dimensionless whatever the mesh units (converted here).

@@ -35,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import MeshError, OptionError
-from ..mesh.model import FaceMesh
+from ..model.mesh import FaceMesh
 from .rig import BlendShapeRig
 
 __all__ = ["TRANSFER_METHODS", "RigTransfer", "transfer_rig", "shapes_on_registration", "copy_through_topology"]

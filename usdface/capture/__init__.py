@@ -1,4 +1,4 @@
 """Capture data and conditioning (stabilisation, gap filling, filtering, resampling...)."""
-from .model import Capture
+from ..model.capture import Capture
 
 __all__ = ["Capture"]

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import OptionError
-from .model import Capture
+from ..model.capture import Capture
 
 log = logging.getLogger("usdface")
 

@@ -20,7 +20,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import OptionError
-from .model import Capture
+from ..model.capture import Capture
 
 __all__ = ["filter_noise", "filter_array", "FILTERS"]
 

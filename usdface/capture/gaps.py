@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import OptionError
-from .model import Capture
+from ..model.capture import Capture
 
 __all__ = ["fill_gaps", "find_gaps", "Gap", "GapReport", "METHODS"]
 

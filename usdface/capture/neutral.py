@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import MarkerError, OptionError
-from .model import Capture
+from ..model.capture import Capture
 
 __all__ = ["choose_neutral", "set_neutral", "NeutralReport"]
 

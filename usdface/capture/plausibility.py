@@ -59,7 +59,7 @@ import numpy as np
 
 from ..errors import OptionError, PlausibilityError, list_names
 from ..units import METERS_PER_UNIT
-from .model import Capture
+from ..model.capture import Capture
 
 log = logging.getLogger("usdface")
 

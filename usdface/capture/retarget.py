@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import MarkerError, list_names
-from .model import Capture
+from ..model.capture import Capture
 
 
 def marker_displacements(capture: Capture, names, transform: np.ndarray) -> np.ndarray:

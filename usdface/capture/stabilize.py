@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import MarkerError, OptionError, list_names
-from .model import Capture
+from ..model.capture import Capture
 from .rigid import fit_rigid_batch, rotation_angle, to_matrix
 
 __all__ = [

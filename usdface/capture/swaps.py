@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import OptionError
-from .model import Capture
+from ..model.capture import Capture
 
 __all__ = ["SwapEvent", "detect_swaps", "fix_swaps", "default_min_jump"]
 

@@ -16,7 +16,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
 from ..errors import OptionError
-from .model import Capture
+from ..model.capture import Capture
 from .rigid import to_matrix
 
 __all__ = ["trim", "offset", "resample", "RESAMPLE_METHODS"]
@@ -207,7 +207,7 @@ def resample(capture: Capture, *, rate: float, method: str = "cubic") -> Capture
     rate = float(rate)
     frames, need = resample_memory(capture, rate)
     if frames > capture.n_frames:  # refuse an impossible rate with its size, before allocating
-        from ..resources import check_memory
+        from ..memory import check_memory
 
         check_memory(need, what=f"resample: {capture.n_frames} frames at {capture.rate:g} Hz to {rate:g} Hz make "
                                 f"{frames:,} frames x {capture.n_markers} markers, which",

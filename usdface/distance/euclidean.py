@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import InputError, OptionError, ResourceError
 from ..fileutil import format_bytes
-from ..resources import available_memory  # noqa: F401  (re-exported)
+from ..memory import available_memory  # noqa: F401  (re-exported)
 
 __all__ = [
     "DistanceWarning",

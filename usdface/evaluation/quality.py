@@ -76,7 +76,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError, MeshError, OptionError, list_names
-from ..mesh.model import Binding, FaceMesh, Region
+from ..model.mesh import Binding, FaceMesh, Region
 
 __all__ = [
     "MIN_SHAPE_DISPLACEMENT_CM",

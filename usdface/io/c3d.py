@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..errors import FormatError, MarkerError
 from .captures import (
     check_input_file, check_up_axis, resolve_rate, resolve_units, unit_from_text, y_up_to_z_up, z_up_to_y_up,

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..errors import FormatError, InputError, OptionError
 from ..units import METERS_PER_UNIT
 

@@ -50,7 +50,7 @@ import re
 
 import numpy as np
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..errors import FormatError, MarkerError, OptionError
 from ..errors import list_names
 from ..units import METERS_PER_UNIT

@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..errors import FormatError, MarkerError, OptionError
 from ..errors import list_names
 from .captures import check_rate_option, read_text, resolve_units

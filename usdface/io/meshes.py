@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, InputError, MeshError, OptionError
-from ..mesh.model import FaceMesh
+from ..model.mesh import FaceMesh
 from ..units import METERS_PER_UNIT
 
 __all__ = ["MESH_SUFFIXES", "DEFAULT_UNITS", "read_mesh"]

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..errors import FormatError, MarkerError
 from ..errors import list_names
 from .captures import (

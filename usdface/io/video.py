@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import InputError, OptionError
 
-__all__ = ["MOVIE_SUFFIXES", "SEQUENCE_SUFFIXES", "VideoReader", "open_video", "is_sequence_pattern"]
+__all__ = ["MOVIE_SUFFIXES", "SEQUENCE_SUFFIXES", "VideoReader", "open_video", "is_sequence_pattern", "is_video"]
 
 MOVIE_SUFFIXES = (".mp4", ".m4v", ".avi", ".mov", ".mkv", ".mpg", ".mpeg", ".webm")
 SEQUENCE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".dpx", ".bmp")
@@ -50,6 +50,12 @@ def _oiio(required_for: str | None = None):
             raise InputError(f"{required_for} needs OpenImageIO: pip install OpenImageIO") from None
         return None
     return oiio
+
+
+def is_video(path) -> bool:
+    """A movie file, an image-sequence pattern (name.####.png) or a folder of frames."""
+    p = Path(path)
+    return p.suffix.lower() in MOVIE_SUFFIXES or is_sequence_pattern(str(path)) or p.is_dir()
 
 
 def is_sequence_pattern(path: str) -> bool:

@@ -1,4 +1,4 @@
 """Face meshes: topology, holes and regions, closest points, marker binding."""
-from .model import Binding, FaceMesh, Region
+from ..model.mesh import Binding, FaceMesh, Region
 
 __all__ = ["Binding", "FaceMesh", "Region"]

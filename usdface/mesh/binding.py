@@ -21,13 +21,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..capture.rigid import fit_rigid, to_matrix
 from ..errors import ComputeError, MarkerError, OptionError, list_names
 from ..units import scale_between
 from .closest import SurfaceLocator
 from .layout import Layout
-from .model import Binding, FaceMesh
+from ..model.mesh import Binding, FaceMesh
 from .topology import boundary_edges
 
 __all__ = [
@@ -42,7 +42,7 @@ __all__ = [
     "mirror_plane",
 ]
 
-#: values of the ``retarget`` option (see :class:`~usdface.mesh.model.Binding`)
+#: values of the ``retarget`` option (see :class:`~usdface.model.mesh.Binding`)
 RETARGET_MODES = ("displacement", "similarity")
 
 

@@ -31,7 +31,7 @@ import numpy as np
 from ..fileutil import write_text_atomic
 from ..errors import FormatError, InputError, MeshError, list_names
 from ..units import METERS_PER_UNIT, scale_between
-from .model import FaceMesh
+from ..model.mesh import FaceMesh
 
 __all__ = ["LAYOUT_FORMAT", "LayoutMarker", "Layout", "read_layout", "write_layout"]
 

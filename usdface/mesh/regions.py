@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import Region
+from ..model.mesh import Region
 
 
 def sample_loop(points: np.ndarray, loop: np.ndarray, spacing: float) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Mesh topology: edges, boundaries and holes, connected components, non-manifold elements.
 
-Everything works on the polygons of a :class:`~usdface.mesh.model.FaceMesh` (a quad has 4 edges,
+Everything works on the polygons of a :class:`~usdface.model.mesh.FaceMesh` (a quad has 4 edges,
 not the 5 of its two triangles) and is vectorised with numpy / scipy.sparse: a 300k-vertex mesh
 takes well under a second.
 
@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
 
-from .model import FaceMesh, Region
+from ..model.mesh import FaceMesh, Region
 
 __all__ = [
     "EdgeTopology",

@@ -24,18 +24,29 @@ from .values import boolean, pair, path, positive_float, positive_int, shown
 class Deliverable:
     """One form of the performance `run` delivers.
 
-    ``kind``: the ``--output-kind`` name; ``layer``: the file it writes in OUTDIR; ``shot``: its shot
-    stage (the first kind's is always ``shot.usda``); ``step``: the registered processor that
-    writes it; ``files``: other files it writes; ``optional_files``: {run option: file} written
-    when that option is true (``livelink`` -> ``curves_livelink.csv``).
+    ``kind``: the ``--output-kind`` name; ``layer``: the file it writes in OUTDIR (the step's
+    ``output``); ``shot``: its shot stage (the first kind's is always ``shot.usda``); ``step``: the
+    registered processor that writes it; ``files``: {the step's output name: file} of the other
+    files it writes; ``optional_files``: {the step's output name: (run option, file)} written when
+    that option of :class:`RunOptions` is true (``livelink`` -> ``curves_livelink.csv``).
+
+    `run` calls the step with the inputs it names among ``mesh``, ``capture``, ``binding``,
+    ``analysis`` (the layers `run` wrote) and ``rig`` (the blend-shape rig: the imported mesh with
+    ``--shapes``, else the mesh file itself), its options taken from :class:`RunOptions`.
     """
 
     kind: str
     layer: str
     shot: str
     step: str
-    files: tuple = ()
+    files: dict = field(default_factory=dict)
     optional_files: dict = field(default_factory=dict)
+
+    def all_files(self, options=None) -> tuple:
+        """The files the deliverable writes into OUTDIR with ``options`` (its layer first)."""
+        extra = [name for output, (flag, name) in self.optional_files.items()
+                 if options is not None and getattr(options, flag, False)]
+        return (self.layer, *self.files.values(), *extra)
 
 
 #: the deliverables `run` can write, in the order they are written
@@ -43,7 +54,7 @@ DELIVERABLES: dict[str, Deliverable] = {d.kind: d for d in (
     Deliverable("points", "anim.usdc", "shot.usda", step="transfer"),
     Deliverable("skel", "skel.usdc", "shot_skel.usda", step="skel"),
     Deliverable("blendshapes", "blendshapes.usdc", "shot_blendshapes.usda", step="blendshapes",
-                files=("curves.csv",), optional_files={"livelink": "curves_livelink.csv"}),
+                files={"csv": "curves.csv"}, optional_files={"livelink": ("livelink", "curves_livelink.csv")}),
 )}
 #: aliases of --output-kind lists
 OUTPUT_ALIASES = {"both": ("points", "skel")}

@@ -75,7 +75,7 @@ def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", dispar
         Pixel subsampling of the scan mesh.
     """
     from ..io.images import FLOAT_MAP_SUFFIXES, check_image_output, read_image, write_float_map
-    from ..mesh.model import FaceMesh
+    from ..model.mesh import FaceMesh
     from ..scan.calibration import read_calibration, rectify_pair
     from ..scan.stereo import METHODS, bad_pixel_rate, check_rectified, compute_disparity, disparity_range, fill_background
     from ..scan.surface import reconstruct_surface

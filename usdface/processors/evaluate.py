@@ -48,7 +48,7 @@ def binding_from_layout(mesh, layout):
         ``method="layout"``, identity capture transform (only the bound points matter here).
     """
     from ..mesh.binding import project_to_surface
-    from ..mesh.model import Binding
+    from ..model.mesh import Binding
 
     sp = project_to_surface(mesh, layout.positions(mesh))
     return Binding(names=layout.names, face_indices=sp.face_indices, triangle_vertices=sp.triangle_vertices,

@@ -86,7 +86,7 @@ def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="ze
     stops the lift unless ``allow`` names the check.
     """
     from ..capture.lift import DEFAULT_MIN_COS, check_marker_sets, lift_displacements, surface_normals
-    from ..capture.model import Capture
+    from ..model.capture import Capture
     from ..capture.plausibility import report
     from ..usd.capture_layer import write_capture_layer
     from .import_mesh import load_mesh

@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import MeshError, OptionError, list_names
-from ..mesh.model import FaceMesh
+from ..model.mesh import FaceMesh
 from ..units import METERS_PER_UNIT
 
 log = logging.getLogger("usdface")

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError, MeshError, list_names
-from ..mesh.model import FaceMesh
+from ..model.mesh import FaceMesh
 from .model import length_scale_of, vertex_normals
 from .muscles import Jaw, Muscle
 

@@ -374,7 +374,7 @@ def write_clip(path, clip: SyntheticClip, *, fourcc: str = "mp4v") -> Path:
 
 def write_truth_csv(path, clip: SyntheticClip, *, min_visible: float = 0.999) -> None:
     """Ground truth as a usdface 2D CSV (pixels; samples less than ``min_visible`` visible left empty)."""
-    from ..capture.model import Capture
+    from ..model.capture import Capture
     from ..io.csv_format import write_csv
 
     pos = np.zeros(clip.truth.shape[:2] + (3,))

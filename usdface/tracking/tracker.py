@@ -69,8 +69,8 @@ class TrackResult:
         return np.isfinite(self.positions).all(axis=2)
 
     def to_capture(self, *, source: str = "", units: str | None = "px", start_frame: int = 0):
-        """A :class:`~usdface.capture.model.Capture` (z = 0, history step with ``"dims": 2``)."""
-        from ..capture.model import Capture
+        """A :class:`~usdface.model.capture.Capture` (z = 0, history step with ``"dims": 2``)."""
+        from ..model.capture import Capture
 
         pos = np.zeros(self.positions.shape[:2] + (3,))
         pos[..., :2] = self.positions

@@ -40,7 +40,7 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from ..errors import FormatError, InputError, MeshError, list_names
-from ..mesh.model import FaceMesh
+from ..model.mesh import FaceMesh
 from .capture_layer import _matrix_from_usd
 from .layers import open_stage, output_layer, set_provenance, set_stage_metadata, stage_units
 from .motion import author_head_motion

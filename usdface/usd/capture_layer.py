@@ -18,7 +18,7 @@ import os
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..errors import InputError, MarkerError
 from ..units import METERS_PER_UNIT
 from .layers import describe, open_stage, output_layer, set_provenance, set_stage_metadata, stage_units

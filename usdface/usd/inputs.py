@@ -6,9 +6,9 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..errors import MarkerError, MeshError, OptionError, list_names
-from ..mesh.model import FaceMesh
+from ..model.mesh import FaceMesh
 from ..units import scale_between
 from .layers import USD_SUFFIXES, is_in_memory, open_stage
 

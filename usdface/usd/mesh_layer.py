@@ -12,7 +12,7 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..errors import InputError, MeshError
-from ..mesh.model import Binding, FaceMesh, Region
+from ..model.mesh import Binding, FaceMesh, Region
 from .capture_layer import _matrix_from_usd, _matrix_to_usd, find_marker_set
 from .layers import (add_sublayer, describe, is_in_memory, open_stage, output_layer, relative_asset_path, set_provenance,
                      set_stage_metadata, stage_units)

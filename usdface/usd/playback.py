@@ -16,7 +16,7 @@ import numpy as np
 from pxr import Usd, UsdGeom, UsdSkel
 
 from ..errors import InputError
-from ..mesh.model import Region
+from ..model.mesh import Region
 from .capture_layer import find_marker_set
 from .layers import open_stage, stage_units
 from .mesh_layer import BINDING_API, find_mesh, read_binding, read_regions
@@ -108,7 +108,7 @@ class ShotReader:
     @classmethod
     def open(cls, path) -> "ShotReader":
         """Open ``path``; an error names the file when it holds no face mesh with topology."""
-        from ..mesh.model import FaceMesh
+        from ..model.mesh import FaceMesh
 
         path = Path(path)
         stage = open_stage(path, what="shot")

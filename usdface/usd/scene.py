@@ -8,7 +8,7 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from ..errors import InputError
-from ..mesh.model import FaceMesh, Region
+from ..model.mesh import FaceMesh, Region
 from .capture_layer import find_marker_set
 from .evaluate import FaceEvaluator
 from .layers import open_stage

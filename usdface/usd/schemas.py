@@ -4,34 +4,20 @@ The schema source is ``schemas/usdFace/schema.usda``; ``usdGenSchema`` (from usd
 jinja2) writes ``generatedSchema.usda`` and ``plugInfo.json`` beside it, and this module copies
 them into the package (``usdface/resources/usdFace``) so wheels carry them.
 
-``import usdface`` calls :func:`register`. Registration must happen before the first stage with
+``import usdface`` registers them (:func:`usdface.register_schemas`). Registration must happen before the first stage with
 prims is opened in the process (USD builds its schema registry once); DCCs import their own pxr
 first, so for them put :func:`plugin_path` on ``PXR_PLUGINPATH_NAME`` before the DCC starts.
 """
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
+from .. import API_SCHEMAS, SCHEMA_RESOURCES as _PACKAGE_RESOURCES  # noqa: F401  (named once, in the package)
 from ..errors import SchemaRegistrationError
 
-#: the applied API schema type names usdface defines
-#: TfType name -> the token used with ApplyAPI / apiSchemas
-API_SCHEMAS = {
-    "UsdFaceMarkerSetAPI": "FaceMarkerSetAPI",
-    "UsdFaceMarkerBindingAPI": "FaceMarkerBindingAPI",
-    "UsdFaceRegionAPI": "FaceRegionAPI",
-    "UsdFaceDistanceMatrixAPI": "FaceDistanceMatrixAPI",
-    "UsdFaceTransferAPI": "FaceTransferAPI",
-    "UsdFaceMuscleAPI": "FaceMuscleAPI",
-}
 MULTIPLE_APPLY = {"FaceRegionAPI", "FaceDistanceMatrixAPI"}
-
-_PACKAGE_RESOURCES = Path(__file__).resolve().parents[1] / "resources" / "usdFace"
 _SOURCE_DIR = Path(__file__).resolve().parents[2] / "schemas" / "usdFace"
 _GENERATED = ("generatedSchema.usda", "plugInfo.json")
-
-_registered = False
 
 
 def plugin_path() -> Path:
@@ -40,35 +26,11 @@ def plugin_path() -> Path:
 
 
 def register() -> bool:
-    """Register usdface's schemas with USD in this process.
+    """Register usdface's schemas with USD in this process (``import usdface`` did); True when they
+    are usable (see :func:`usdface.register_schemas`)."""
+    from .. import register_schemas
 
-    Returns True when the schemas are usable. When the process already built its schema registry
-    before usdface was imported (a DCC, or a script that opened a stage first) and the plugin
-    was not on PXR_PLUGINPATH_NAME, warns with what to do and returns False.
-    """
-    global _registered
-    if _registered:
-        return True
-    from pxr import Plug, Usd
-
-    Plug.Registry().RegisterPlugins(str(_PACKAGE_RESOURCES))
-    missing = [name for name in API_SCHEMAS if not _is_known(Usd, name)]
-    if missing:
-        warnings.warn(
-            "usdface schemas were registered too late in this process (USD's schema registry was "
-            f"already built), so {', '.join(missing)} cannot be applied. Import usdface before "
-            "opening any stage, or set PXR_PLUGINPATH_NAME to the folder printed by "
-            "`usdface plugin-path` before starting Python or the DCC.",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-        return False
-    _registered = True
-    return True
-
-
-def _is_known(Usd, type_name: str) -> bool:
-    return Usd.SchemaRegistry().FindAppliedAPIPrimDefinition(API_SCHEMAS[type_name]) is not None
+    return register_schemas()
 
 
 def require_registered() -> None:

@@ -24,7 +24,7 @@ import os
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-from ..capture.model import Capture
+from ..model.capture import Capture
 from ..errors import InputError, MarkerError
 from .capture_layer import CAPTURE_PRIM, MARKER_SET_API, MARKERS_PRIM, hold_invalid, read_capture_layer
 from .layers import output_layer, open_stage, set_provenance, set_stage_metadata

@@ -255,7 +255,7 @@ def check_shot_integrity(path: str | os.PathLike) -> list[Finding]:
     """A shot stage written by `usdface run` against the files beside it: every file it lists
     present, with the sha256 and provenance id it was committed with (no mix of two runs, nothing
     missing); a shot stage missing because a commit was interrupted is an error too."""
-    from ..shot_commit import interrupted_commit, read_shot_record, verify_shot
+    from .shot_record import interrupted_commit, read_shot_record, verify_shot
 
     p = Path(path)
     folder = p.parent

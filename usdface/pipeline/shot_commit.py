@@ -54,16 +54,14 @@ import threading
 import time
 from pathlib import Path
 
-from .errors import LockedError
-from .fileutil import (HOST_TAG, TEMPORARY_MAX_AGE, format_bytes, fsync_dir, fsync_file, inject_fault, is_temporary_name,
-                       owner_is_dead, path_digest, same_file_problems, temporary_owner, write_error)
+from ..errors import LockedError
+from ..fileutil import (HOST_TAG, TEMPORARY_MAX_AGE, format_bytes, fsync_dir, fsync_file, inject_fault, owner_is_dead,
+                        same_file_problems, temporary_owner, write_error)
+from ..usd.shot_record import MARKER_NAME, RUN_FOLDER_PREFIX, SUMMARY_NAME, is_shot_stage, leftovers, shot_record
 
 log = logging.getLogger("usdface")
 
-RUN_FOLDER_PREFIX = ".usdface-run-"
 LOCK_NAME = ".usdface-lock"
-MARKER_NAME = "COMMIT.json"
-SUMMARY_NAME = "summary.json"
 #: temporaries whose owner cannot be asked (another host) are removed after this many seconds
 #: environment variable of the kill test hook (module docstring)
 KILL_ENV = "USDFACE_TEST_KILL_AT"
@@ -72,11 +70,6 @@ KILL_ENV = "USDFACE_TEST_KILL_AT"
 def run_id(provenance: dict) -> str:
     """The id of a run: 16 hex digits of the sha256 of its provenance (same job, same id)."""
     return hashlib.sha256(json.dumps(provenance, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
-def is_shot_stage(name: str) -> bool:
-    """Whether an OUTDIR file name is a shot stage (``shot.usda``, ``shot_<kind>.usda``)."""
-    return name.endswith(".usda") and (name == "shot.usda" or name.startswith("shot_"))
 
 
 def commit_order(files) -> list[str]:
@@ -293,22 +286,6 @@ def _newest_mtime(path: Path) -> float:
     return newest
 
 
-def leftovers(folder) -> list[Path]:
-    """Run folders and temporary files in ``folder`` (whoever owns them)."""
-    folder = Path(folder)
-    try:
-        entries = list(os.scandir(folder))
-    except OSError:
-        return []
-    found = []
-    for e in entries:
-        if e.name.startswith(RUN_FOLDER_PREFIX) and e.is_dir(follow_symlinks=False):
-            found.append(Path(e.path))
-        elif is_temporary_name(e.name) and e.is_file(follow_symlinks=False):
-            found.append(Path(e.path))
-    return sorted(found)
-
-
 def tidy(folder, *, keep=(), max_age: float = TEMPORARY_MAX_AGE) -> dict:
     """Complete interrupted commits and remove temporaries whose owner is dead (module docstring).
 
@@ -368,22 +345,6 @@ def tidy_unlocked_folder(folder) -> dict | None:
         lock.release()
 
 
-def interrupted_commit(folder) -> dict | None:
-    """The plan of an interrupted commit in ``folder`` (a run folder holding COMMIT.json), with the
-    files it has not yet put in place under ``"pending"``; None when there is none."""
-    for path in leftovers(folder):
-        marker = path / MARKER_NAME
-        if path.is_dir() and marker.exists():
-            try:
-                plan = json.loads(marker.read_text())
-            except (OSError, ValueError):
-                continue
-            plan["folder"] = path.name
-            plan["pending"] = [f for f in plan.get("files", []) if (path / f).exists()]
-            return plan
-    return None
-
-
 @contextlib.contextmanager
 def _signals_deferred():
     """SIGINT and SIGTERM wait until the block ends (a commit is never stopped half-way), then act."""
@@ -406,83 +367,6 @@ def _signals_deferred():
             signal.signal(s, handler)
         if pending:
             signal.raise_signal(pending[0])
-
-
-# -- the shot record ------------------------------------------------------------------------------
-
-def shot_record(folder, files, run: str) -> dict:
-    """What a shot stage lists: the run id and, per file, sha256 and provenance id (USD layers) or
-    nothing (summary.json and shot stages are named; their run id is checked)."""
-    from .usd.layers import USD_SUFFIXES, layer_provenance, provenance_id
-
-    folder = Path(folder)
-    entries = {}
-    for name in files:
-        if is_shot_stage(name) or name == SUMMARY_NAME:
-            entries[name] = {}
-            continue
-        path = folder / name
-        entry = {"sha256": path_digest(path)}
-        if path.suffix.lower() in USD_SUFFIXES:
-            entry["id"] = provenance_id(layer_provenance(path))
-        entries[name] = entry
-    return {"runId": run, "files": entries}
-
-
-def read_shot_record(path) -> dict | None:
-    """The record of a shot stage (None: not a shot written by this usdface, or unreadable)."""
-    from .usd.layers import layer_provenance
-
-    prov = layer_provenance(path)
-    if not prov or "shot" not in prov:
-        return None
-    try:
-        return json.loads(prov["shot"])
-    except (TypeError, ValueError):
-        return None
-
-
-def verify_shot(stage_path) -> list[str]:
-    """Problems of a committed shot: files missing, or not the ones the shot was committed with.
-
-    [] for a complete shot (or a shot stage without a record: written before records existed).
-    """
-    from .usd.layers import USD_SUFFIXES, layer_provenance, provenance_id
-
-    stage_path = Path(stage_path)
-    record = read_shot_record(stage_path)
-    if record is None:
-        return []
-    folder = stage_path.parent
-    run = record.get("runId")
-    problems = []
-    for name, entry in sorted(record.get("files", {}).items()):
-        path = folder / name
-        if name == stage_path.name:
-            continue
-        if not path.exists():
-            problems.append(f"{name} is missing")
-            continue
-        if "sha256" in entry:
-            if path_digest(path) != entry["sha256"]:
-                what = "its bytes differ"
-                if path.suffix.lower() in USD_SUFFIXES:
-                    pid = provenance_id(layer_provenance(path))
-                    if pid != entry.get("id"):
-                        what = f"provenance id {pid}, expected {entry.get('id')}"
-                problems.append(f"{name} is not the file committed with this shot ({what})")
-        elif name == SUMMARY_NAME:
-            try:
-                other = json.loads(path.read_text()).get("runId")
-            except (OSError, ValueError):
-                other = "unreadable"
-            if other != run:
-                problems.append(f"{name} is from run {other}")
-        elif is_shot_stage(name):  # committed with this one; a stage with its own record names its run
-            other = read_shot_record(path)
-            if other is not None and other.get("runId") != run:
-                problems.append(f"{name} is from run {other.get('runId')}")
-    return problems
 
 
 # -- one run's session ----------------------------------------------------------------------------
@@ -612,8 +496,8 @@ def check_run_paths(folder, files, inputs: dict) -> None:
 
     ``inputs``: ``{option: path or None}``; USD inputs are followed into the files they compose.
     """
-    from .errors import OptionError
-    from .usd.layers import with_composed_files
+    from ..errors import OptionError
+    from ..usd.layers import with_composed_files
 
     folder = Path(folder)
     outputs = [("-o", folder)] + [(f"-o {folder}: its file", folder / name) for name in files]

@@ -16,8 +16,9 @@ import time
 import traceback
 from pathlib import Path
 
-from .. import __version__
-from ..errors import EnvironmentFault, OptionError, UsdFaceError
+from ... import __version__, registry
+from ...errors import EnvironmentFault, OptionError, UsdFaceError
+from ...options import BatchOptions, RunOptions
 from .manifest import Manifest, Shot
 
 log = logging.getLogger("usdface")
@@ -46,35 +47,28 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
         with single_threaded():
             cache = None
             if cache_root is not None:
-                from .cache import ContentCache
+                from ...cache import ContentCache
 
                 cache = ContentCache(cache_root)
             capture = shot.capture  # `run` tracks and lifts video captures itself
-            from ..options import RunOptions
-            from ..processors.run import run
-
-            with step_clock() as clock:
-                summary = run(shot.mesh, capture, shot.output, RunOptions.from_mapping(shot.options), cache=cache)
+            with registry.timed_calls() as clock:
+                summary = registry.call("run", shot.mesh, capture, options=RunOptions.from_mapping(shot.options),
+                                        output=shot.output, cache=cache).summary
             rec["steps"] = {k: clock.get(k, v.get("seconds")) for k, v in summary["steps"].items()}
             rec["steps"]["other"] = round(max(0.0, time.perf_counter() - started - sum(
                 x for x in rec["steps"].values() if isinstance(x, (int, float)))), 3)
             rec["frames"] = summary["frames"]
             rec["vertices"] = summary["vertices"]
             rec["cache"] = {k: v["cache"]["status"] for k, v in summary["steps"].items() if "cache" in v}
-            if "check" in shot.processors:
-                from ..usd.validation import check_layer
-
-                findings = check_layer(str(Path(shot.output) / "shot.usda"))
-                errors = [str(f) for f in findings if f.severity == "error"]
-                rec["check"] = {"errors": len(errors), "findings": len(findings)}
-                if errors:
-                    raise UsdFaceError(f"usdface check found {len(errors)} error(s) in shot.usda: {errors[0]}")
+            for step in shot.processors:
+                if step not in ("run", "track"):
+                    _run_batch_step(step, shot, rec)
             rec["status"] = "ok"
     except UsdFaceError as exc:
         rec["error"] = str(exc)
         rec["status"] = "unsupported" if getattr(exc, "unsupported", False) else "failed"
     except Exception as exc:  # noqa: BLE001 - a bug or a library error must not stop the batch
-        from ..fileutil import describe_exception
+        from ...fileutil import describe_exception
 
         # file system, memory and USD errors: one line naming the file and the cause; a bug keeps
         # its traceback in the summary for the report
@@ -85,62 +79,21 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
     return rec
 
 
-#: the processors `run` calls, by step name: (module, function)
-_STEP_FUNCTIONS = {"import-mesh": ("import_mesh", "import_mesh"), "import-capture": ("import_capture", "import_capture"),
-                   "bind": ("bind", "bind"), "distances": ("distances", "distances"),
-                   "transfer": ("transfer", "transfer"), "skel": ("skel", "skel"), "track": ("track", "track"),
-                   "lift": ("lift", "lift")}
-_CORE_STEPS = ("import-mesh", "import-capture", "bind", "distances", "transfer")
-
-
-class step_clock:
-    """Wall seconds of each processor `run` calls during the ``with`` block: ``{step: seconds}``.
-
-    Not every processor reports its own time in its summary, so the processor functions are
-    wrapped for the duration of one shot (run looks them up when it runs) and restored after. Steps
-    called twice add up. This assumes one shot at a time per process, as serial runs and usdface's
-    LocalCluster (one thread per worker) do; on a farm whose Dask workers run several threads,
-    start them with ``--nthreads 1`` or the step times of concurrent shots mix (outputs are not
-    affected: only the timing).
-    """
-
-    def __enter__(self) -> dict:
-        import importlib
-
-        self.times: dict = {}
-        self._saved = []
-        for step, (mod_name, fn_name) in _STEP_FUNCTIONS.items():
-            name = f"usdface.processors.{mod_name}"
-            if step not in _CORE_STEPS and name not in sys.modules:
-                continue        # video and skeleton processors import cv2 and more: only when used
-            try:
-                mod = importlib.import_module(name)
-            except ImportError:  # pragma: no cover - an optional processor
-                continue
-            fn = getattr(mod, fn_name, None)
-            if fn is None or getattr(fn, "_usdface_step_clock", False):
-                continue
-            self._saved.append((mod, fn_name, fn))
-            setattr(mod, fn_name, self._timed(step, fn))
-        return self.times
-
-    def _timed(self, step, fn):
-        times = self.times
-
-        def timed(*args, **kwargs):
-            t0 = time.perf_counter()
-            try:
-                return fn(*args, **kwargs)
-            finally:
-                times[step] = round(times.get(step, 0.0) + time.perf_counter() - t0, 3)
-        timed._usdface_step_clock = True
-        timed.__wrapped__ = fn
-        return timed
-
-    def __exit__(self, *exc):
-        for mod, name, fn in self._saved:
-            setattr(mod, name, fn)
-        return False
+def _run_batch_step(step: str, shot: Shot, rec: dict) -> None:
+    """A batch step a shot lists (``check``, a studio's processor): on the shot's stage, with its
+    default options; a non-zero exit code fails the shot."""
+    result = registry.call(step, str(Path(shot.output) / "shot.usda"))
+    findings = result.legacy if isinstance(result.legacy, list) else None  # a validator's findings
+    if findings is not None:
+        errors = [str(f) for f in findings if f.severity == "error"]
+        rec[step] = {"errors": len(errors), "findings": len(findings)}
+        if errors:
+            raise UsdFaceError(f"usdface {step} found {len(errors)} error(s) in shot.usda: {errors[0]}")
+        return
+    rec[step] = {"exitCode": result.exit_code}
+    if result.exit_code:
+        first = next((line for line in result.text if line.strip()), "")
+        raise UsdFaceError(f"usdface {step} exited {result.exit_code} on shot.usda: {first}")
 
 
 class single_threaded:
@@ -187,9 +140,8 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     version, options, input names and sha256); and each layer's provenance names the usdface
     version and inputs whose sha256 equal the files in OUTDIR (the chain was not edited since).
     """
-    from ..options import RunOptions
-    from ..processors.run import output_files, run_provenance
-    from ..shot_commit import read_shot_record, verify_shot
+    from ...usd.shot_record import read_shot_record, verify_shot
+    from ..run import output_files, run_provenance
 
     out = Path(shot.output)
     opts = RunOptions.from_mapping(shot.options)
@@ -198,7 +150,7 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     except (OSError, ValueError):
         summary = None
     files = summary.get("files") if isinstance(summary, dict) and summary.get("files") else \
-        output_files(opts.output_kind, video=shot.is_video)
+        output_files(opts.output_kind, video=shot.is_video, options=opts)
     missing = [f for f in files if not (out / f).is_file()]
     if missing:
         return False, f"missing {', '.join(missing)}"
@@ -218,7 +170,7 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
         return False, f"provenance differs ({', '.join(what) or 'absent'})"
     if recorded:  # every file is the one committed with the shot, and a commit holds one run's files
         return True, "outputs current"
-    from ..usd.layers import file_digest
+    from ...usd.layers import file_digest
 
     digests = {}
     for name in [f for f in files if f.endswith((".usdc", ".usda")) and not f.startswith("shot")]:
@@ -236,20 +188,18 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
 
 
 def _layer_provenance(path: Path) -> dict | None:
-    from ..usd.layers import layer_provenance
+    from ...usd.layers import layer_provenance
 
     return layer_provenance(path)
 
 
 # -- the batch ------------------------------------------------------------------------------------
 
-def run_batch(manifest: Manifest, *, workers: int | None = None, scheduler: str | None = None,
-              resume: bool = False, force: bool = False, cache: str | None | bool = None,
-              summary_path: str | None = None, quiet: bool = False) -> dict:
+def run_batch(manifest: Manifest, options: BatchOptions = BatchOptions(), *, summary_path: str | None = None) -> dict:
     """Run every shot; returns the batch summary (also written to the summary JSON file).
 
-    Parameters
-    ----------
+    ``options`` (:class:`usdface.options.BatchOptions`, the command's flags):
+
     workers : int, optional
         LocalCluster size (default: the manifest's, else the number of cores, at most the number
         of shots). 0 runs the shots one after the other in this process, without Dask.
@@ -262,7 +212,12 @@ def run_batch(manifest: Manifest, *, workers: int | None = None, scheduler: str 
         Redo every shot (overrides ``resume``).
     cache : str, False or None
         Cache folder; False for none; None for the manifest's (default ``.usdface-cache``).
+
+    ``summary_path``: the batch summary file (default: the manifest's). A quiet logger (``-q``)
+    prints no status lines.
     """
+    workers, scheduler, resume, force, cache = (options.workers, options.scheduler, options.resume, options.force,
+                                                options.cache)
     started = time.perf_counter()
     t0 = time.time()
     scheduler = scheduler or manifest.scheduler
@@ -272,7 +227,7 @@ def run_batch(manifest: Manifest, *, workers: int | None = None, scheduler: str 
         probe_scheduler(scheduler)
     cache_root = manifest.cache if cache is None else (None if cache is False else str(Path(cache).resolve()))
     if cache_root is not None:
-        from .cache import ContentCache
+        from ...cache import ContentCache
 
         ContentCache(cache_root).tidy()  # create it / fail early; remove dead writers' temporaries
     summary_path = Path(summary_path or manifest.summary)
@@ -295,7 +250,7 @@ def run_batch(manifest: Manifest, *, workers: int | None = None, scheduler: str 
         Path(shot.output).parent.mkdir(parents=True, exist_ok=True)
 
     info = {"mode": "serial", "workers": 0, "dashboard": None, "scheduler": None}
-    status_out = _StatusPrinter(len(manifest.shots), quiet=quiet)
+    status_out = _StatusPrinter(len(manifest.shots))
     for rec in records.values():
         status_out.done(rec)
     if todo:
@@ -474,10 +429,10 @@ def _dashboard(client) -> str | None:
 class _StatusPrinter:
     """An overall progress bar (on a terminal) and one status line per finished shot on stderr."""
 
-    def __init__(self, total: int, quiet: bool):
-        from ..progress import progress
+    def __init__(self, total: int):
+        from ...progress import progress
 
-        self.quiet = quiet or logging.getLogger("usdface").getEffectiveLevel() > logging.WARNING
+        self.quiet = logging.getLogger("usdface").getEffectiveLevel() > logging.WARNING
         self.total = total
         self.finished = 0
         self.bar = progress(total=total, desc="shots", unit="shot")
@@ -538,7 +493,7 @@ def step_times(steps) -> str:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    from ..fileutil import atomic_write, write_error
+    from ...fileutil import atomic_write, write_error
 
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -36,10 +36,15 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import FormatError, InputError, OptionError
+from ...errors import FormatError, InputError, OptionError
 
-#: processors a shot may list
-PROCESSORS = ("track", "run", "check")
+def shot_steps() -> tuple:
+    """The processors a shot may list: ``run`` (always runs), ``track`` (accepted: `run` tracks a
+    video capture itself) and every batch step of the registry (``check``, a studio's own)."""
+    from ...registry import batch_steps
+
+    return ("track", "run") + batch_steps()
+
 BATCH_KEYS = {"cache": (str, bool), "summary": (str,), "workers": (int,), "scheduler": (str,)}
 _SHOT_ONLY = {"mesh", "capture", "output", "processors"}
 
@@ -60,7 +65,7 @@ class Shot:
 
     @property
     def is_video(self) -> bool:
-        from ..processors.run import is_video
+        from ...io.video import is_video
 
         return is_video(self.capture)
 
@@ -79,7 +84,7 @@ class Manifest:
 def shot_keys() -> dict:
     """{manifest key: option field} for every `usdface run` option a manifest takes (the fields of
     :class:`usdface.options.RunOptions`: a manifest key is the option's name)."""
-    from ..options import RunOptions, option_fields
+    from ...options import RunOptions, option_fields
 
     return {f.name: f for f in option_fields(RunOptions)}
 
@@ -191,10 +196,11 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
         processors = merged.get("processors", ["run"])
         if isinstance(processors, str):
             processors = [processors]
-        bad = [p for p in processors if p not in PROCESSORS]
+        known = shot_steps()
+        bad = [p for p in processors if p not in known]
         if bad or "run" not in processors:
             problems.append(f"{where('shots', i, 'processors') if 'processors' in entry else label}: processors "
-                            f"{processors!r}: expected a list of {', '.join(PROCESSORS)} including 'run'")
+                            f"{processors!r}: expected a list of {', '.join(known)} including 'run'")
             continue
         meshes = _expand(merged["mesh"], base, "mesh", label, missing)
         captures = _expand(merged["capture"], base, "capture", label, missing)
@@ -230,7 +236,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                     continue
                 name = f"{names['mesh']}/{names['capture']}"
                 shots.append(Shot(name=name, mesh=mesh, capture=capture, output=output, options=options,
-                                  processors=tuple(p for p in PROCESSORS if p in processors), layout=layout,
+                                  processors=tuple(p for p in known if p in processors), layout=layout,
                                   entry=i, line=line))
     cache = batch.get("cache", ".usdface-cache")
     cache_path = None if cache is False else str(_output_path(cache, out_base))
@@ -267,7 +273,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
 def _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems) -> dict | None:
     """The shot's :class:`RunOptions` as a plain dict (it travels to workers), checked by the
     options object itself, as the command line's values are."""
-    from ..options import RunOptions
+    from ...options import RunOptions
 
     values = {k: v for k, v in merged.items() if k not in _SHOT_ONLY}
     values["layout"] = layout
@@ -362,13 +368,16 @@ def shot_inputs(shot: Shot) -> dict:
 def _inputs_overwritten(shots, manifest_path) -> list[str]:
     """Shots whose output files (what `usdface run` writes into their folder) are an input of any
     shot of the batch, or the manifest."""
-    from ..fileutil import same_file_problems
-    from ..processors.run import is_video, output_files
+    from ...fileutil import same_file_problems
+    from ...io.video import is_video
+    from ...options import RunOptions
+    from ..run import output_files
 
     inputs = batch_inputs(manifest_path, shots)
     found = []
     for s in shots:
-        files = output_files(s.options.get("output_kind") or ("points",), video=is_video(s.capture))
+        files = output_files(s.options.get("output_kind") or ("points",), video=is_video(s.capture),
+                             options=RunOptions.from_mapping(s.options))
         outputs = [("output", Path(s.output))] + [("output", Path(s.output) / f) for f in files]
         found += [f"{s.name}: {p}" for p in same_file_problems(outputs, inputs)]
     return found
@@ -377,7 +386,7 @@ def _inputs_overwritten(shots, manifest_path) -> list[str]:
 def batch_inputs(manifest_path, shots) -> dict:
     """Every file a batch reads: the manifest itself and each shot's inputs, with the files its USD
     inputs compose; ``{label: [paths]}``."""
-    from ..usd.layers import composed_files
+    from ...usd.layers import composed_files
 
     inputs: dict = {"the manifest": [str(manifest_path)]}
     for s in shots:
@@ -397,7 +406,7 @@ def check_batch_outputs(manifest_path, shots, outputs: dict) -> None:
 
     ``outputs``: ``{label: path}`` (``None`` skipped), e.g. ``{"summary": ..., "report": ...}``.
     """
-    from ..fileutil import same_file_problems
+    from ...fileutil import same_file_problems
 
     problems = same_file_problems({k: v for k, v in outputs.items() if v is not None},
                                   batch_inputs(manifest_path, shots))

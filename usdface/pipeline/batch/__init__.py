@@ -1,0 +1,51 @@
+"""`usdface batch MANIFEST`: many shots in parallel with dask.distributed, resumable, with a
+content-addressed cache (:mod:`usdface.cache`).
+
+- :mod:`.manifest` reads and checks a TOML manifest (every problem before any work);
+- :mod:`.runner` runs the shots (`run`, then the batch steps a shot lists, through the registry)
+  serially or on a Dask cluster, and writes the batch summary.
+
+>>> from usdface import api
+>>> api.batch("shots.toml", {"workers": 2, "resume": True})        # doctest: +SKIP
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ...options import BatchOptions
+from ...registry import Result
+
+__all__ = ["batch"]
+
+
+def batch(manifest, *, options: BatchOptions, summary=None, report=None) -> Result:
+    """Load and check the manifest (every missing file at once, before any work), run its shots.
+
+    ``summary``: the batch summary to write (default: the manifest's, else
+    usdface-batch-summary.json); ``report``: also write the HTML batch report to this file, or
+    beside the batch summary (``.html``) when ``True``. The Result's ``exit_code`` is 1 if any
+    shot failed; its ``text`` is the shot table.
+    """
+    from .manifest import check_batch_outputs, load_manifest
+    from .runner import run_batch
+
+    m = load_manifest(manifest, out_root=options.out_root)
+    summary_file = summary or m.summary
+    report_file = None if report in (None, False) else Path(summary_file).with_suffix(".html") if report is True \
+        else report
+    # --summary and --report never replace the manifest or what a shot reads (before any work)
+    check_batch_outputs(m.path, m.shots, {"--summary": summary, "--report": report_file})
+    if report not in (None, False, True):
+        from ...fileutil import check_report_output
+
+        check_report_output(report)  # an unwritable report fails before the shots run
+    result = run_batch(m, options, summary_path=summary)
+    files = {"summary": result["summaryFile"]}
+    if report not in (None, False):
+        from ..report import batch_report
+
+        rep = batch_report(result, None if report is True else report)
+        result["report"] = rep.summary["output"]
+        files["report"] = rep.summary["output"]
+        result["_text"] = list(result.get("_text", [])) + rep.text
+    return Result.from_summary(result, files=files)
