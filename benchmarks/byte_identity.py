@@ -41,6 +41,7 @@ ALLOWED = {
     "scheduler": "the Dask scheduler's address",
     "dashboard": "the Dask dashboard's address",
     "usdfaceVersion": "the version number (only if it was bumped)",
+    "steps (batch summary)": "a batch shot record's {step: wall seconds}",
 }
 
 
@@ -92,9 +93,15 @@ def run_tree(tree: Path, job: str, work: Path) -> tuple[float, list[str]]:
     return time.perf_counter() - t0, errors
 
 
+def _is_timing_table(key, value) -> bool:
+    """A batch shot record's ``steps``: {step: wall seconds}."""
+    return key == "steps" and isinstance(value, dict) and all(isinstance(v, (int, float)) or v is None
+                                                                for v in value.values())
+
+
 def _drop(doc, allowed):
     if isinstance(doc, dict):
-        return {k: _drop(v, allowed) for k, v in doc.items() if k not in allowed}
+        return {k: _drop(v, allowed) for k, v in doc.items() if k not in allowed and not _is_timing_table(k, v)}
     if isinstance(doc, list):
         return [_drop(v, allowed) for v in doc]
     return doc

@@ -64,8 +64,7 @@ _LEGACY_KEYWORDS = {
     "report": {"playblast": None},
 }
 #: keywords of usdface 0.2 renamed: {function: {old: new}}
-_LEGACY_NAMES = {"import_capture": {"source": "source"}, "solve": {"livelink": "livelink"},
-                 "run": {"out_dir": "output", "cache": "cache"}}
+_LEGACY_NAMES = {"run": {"out_dir": "output"}}
 #: usdface 0.2 returned a dict (the summary) or a list (check's findings) from these
 _LEGACY_RETURNS = ("run", "solve", "playblast", "report")  # (check sets its findings itself)
 
@@ -272,15 +271,21 @@ def commands() -> list[str]:
     return [p.api_name for p in registry.commands()]
 
 
+_functions: dict = {}
+
+
 def __getattr__(name: str):
+    # looked up in the registry at each access (a processor registered later appears, one removed
+    # goes); one function object per processor
     try:
         processor = registry.find(name)
     except OptionError:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
     if not processor.command or processor.api_name != name:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    fn = _make(processor)
-    globals()[name] = fn
+    fn = _functions.get(id(processor))
+    if fn is None or fn.processor is not processor:
+        fn = _functions[id(processor)] = _make(processor)
     return fn
 
 

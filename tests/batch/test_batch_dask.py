@@ -155,7 +155,8 @@ def test_farm_matches_serial_caches_and_resumes(tmp_path, make_manifest, dask_fa
 
 
 def test_resume_redoes_changed_and_tampered_shots(tmp_path, make_manifest):
-    from usdface.pipeline.batch import load_manifest, run_batch
+    from usdface.pipeline.batch.manifest import load_manifest
+    from usdface.pipeline.batch.runner import run_batch
 
     p = make_manifest(tmp_path, broken=False, trim=(0, 40))
     m = load_manifest(p)
@@ -197,7 +198,7 @@ def test_unreachable_scheduler_fails_fast(tmp_path, make_manifest, capsys):
 
 def test_example_manifest_runs_as_written(repo_root, tmp_path):
     example = repo_root / "sample_assets" / "batch" / "example.toml"
-    from usdface.pipeline.batch import load_manifest
+    from usdface.pipeline.batch.manifest import load_manifest
 
     m = load_manifest(example, out_root=tmp_path)
     assert len(m.shots) == 6 and {Path(s.mesh).name for s in m.shots} == {

@@ -88,7 +88,8 @@ def test_corrupt_entry_is_a_miss_and_removed(tmp_path):
 
 def test_full_cache_fails_the_shot_clearly(tmp_path, make_manifest, monkeypatch):
     """A shot whose cache write hits a full disk fails with the cache's message; the others go on."""
-    from usdface.pipeline.batch import load_manifest, run_batch
+    from usdface.pipeline.batch.manifest import load_manifest
+    from usdface.pipeline.batch.runner import run_batch
     from usdface import cache as cache_mod
 
     real = shutil.disk_usage

@@ -85,7 +85,7 @@ def test_a_shot_writing_over_its_inputs_is_refused_before_any_work(tmp_path):
     (out / "capture.usdc").write_bytes((SA / "capture" / "JawMoCap.usdc").read_bytes())
     m = _manifest(tmp_path, [{"mesh": SA / "meshes" / "makehuman_hm08_face_cm.obj", "capture": out / "capture.usdc",
                               "layout": SA / "layouts" / "makehuman_hm08_face.layout.json", "output": "out"}])
-    with pytest.raises(InputError, match=r"would overwrite the input .*out/capture\.usdc \(capture\)"):
+    with pytest.raises(InputError, match=r"would overwrite the input .*out/capture\.usdc \(capture of shot makehuman_hm08_face_cm/capture\)"):
         load_manifest(m)
 
 

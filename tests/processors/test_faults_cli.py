@@ -77,11 +77,11 @@ def test_outputs_that_are_inputs_are_refused_before_any_work(tmp_path, capsys):
         line = _one_line_error(capsys.readouterr().err, argv[0])
         assert "would overwrite the input" in line and named in line, line
     # the Python API refuses too (the same helper at each processor's entry)
+    from usdface import api
     from usdface.errors import OptionError
-    from usdface.processors.import_capture import import_capture
 
     with pytest.raises(OptionError, match="would overwrite the input"):
-        import_capture(cap, cap, trim=(0, 10))
+        api.import_capture(cap, {"trim": (0, 10)}, output=cap)
     assert _digests(tmp_path) == before
 
 

@@ -25,7 +25,7 @@ from .declarations import CommandGroup, Input, Output, Processor
 from .result import Result
 
 __all__ = ["Processor", "Input", "Output", "CommandGroup", "Result", "processors", "commands", "find", "register",
-           "unregister", "groups", "batch_steps", "call", "timed_calls", "ENTRY_POINT_GROUP"]
+           "unregister", "groups", "batch_steps", "call", "timed_calls", "command_table", "ENTRY_POINT_GROUP"]
 
 log = logging.getLogger("usdface")
 
@@ -149,3 +149,14 @@ def timed_calls():
         yield timer
     finally:
         _timers.remove(timer)
+
+
+def command_table() -> str:
+    """The README's command table (markdown): every command's synopsis and summary, from the
+    declarations; ``tests/test_registry.py`` keeps the README's copy equal to it."""
+    def cell(text: str) -> str:
+        return text.replace("|", "\\|")
+
+    rows = ["| command | what it does |", "|---|---|"]
+    rows += [f"| `{cell(p.synopsis())}` | {cell(p.summary)} |" for p in commands()]
+    return "\n".join(rows) + "\n"

@@ -227,9 +227,9 @@ PROCESSORS = (
         "Import the mesh and the capture (stabilised), bind the markers, compute the distances and transfer the "
         "motion; OUTDIR gets mesh.usdc capture.usdc binding.usda analysis.usdc anim.usdc shot.usda summary.json.",
         function="usdface.pipeline.run:run", options=RunOptions,
-        inputs=(Input("mesh", "face mesh (OBJ, PLY, ... or USD)", flag="--mesh", kind="file", metavar="M"),
+        inputs=(Input("mesh", "face mesh (OBJ, PLY, ... or USD)", flag="--mesh", kind="file"),
                 Input("capture", "capture (Maya ASCII, C3D, TRC, CSV, a capture layer, or a video of painted dots)",
-                      flag="--capture", kind="file", metavar="C")),
+                      flag="--capture", kind="file")),
         outputs=(Output("output", "output folder (created if missing)", kind="folder", metavar="OUTDIR"),)),
     Processor(
         "batch", "run a shot manifest (TOML) in parallel with Dask: local cores or a farm",

@@ -101,10 +101,11 @@ class Processor:
         One line: the command's help in ``usdface --help`` and the README's table.
     description : str
         The paragraph ``usdface NAME --help`` shows.
-    function : str
+    function : str or callable
         ``"module:function"``, imported when the processor runs (the command line's start-up
-        loads none of them). It takes the inputs (positionally, in order), ``options=`` and the
-        outputs as keywords, and returns a :class:`~usdface.registry.Result`.
+        loads none of them), or the function itself (code registering at run time). It takes the
+        inputs (positionally, in order), ``options=`` and the outputs as keywords, and returns a
+        :class:`~usdface.registry.Result`.
     options : type
         The options dataclass (:mod:`usdface.options`): every flag the command takes besides its
         inputs and outputs.
@@ -127,7 +128,7 @@ class Processor:
     name: str
     summary: str
     description: str
-    function: str
+    function: Any
     options: type
     inputs: tuple = ()
     outputs: tuple = ()
@@ -149,6 +150,8 @@ class Processor:
 
     def load(self) -> Callable:
         """The processor function."""
+        if callable(self.function):
+            return self.function
         module, _, attr = self.function.partition(":")
         return getattr(importlib.import_module(module), attr)
 
