@@ -238,8 +238,10 @@ def child(mode: str, n_side: int, frames: int, out_dir: str) -> dict:
             pass
     else:
         absolute = mode == "transfer" and hasattr(solver, "_offset_rhs")
+        from usdface.model.timing import FrameRange
+
         write_animation_layer(Path(out_dir) / f"anim_{mode}.usdc", chunks, mesh_path=mesh_path,
-                              rest_points=None if absolute else mesh.points, start=0, rate=60.0, n_frames=frames,
+                              rest_points=None if absolute else mesh.points, frames=FrameRange(0, 60.0, frames),
                               units="cm", transfer=settings, prov={})
     seconds = time.perf_counter() - t0
     return {"seconds": seconds, "maxrss_mb": float(peak_line().split()[1]), "points": mesh.n_points}

@@ -3,5 +3,6 @@
 of numpy arrays: the io readers make them, the compute packages transform them, usd/ writes them."""
 from .capture import Capture
 from .mesh import Binding, FaceMesh, Region
+from .timing import FrameRange
 
-__all__ = ["Capture", "FaceMesh", "Region", "Binding"]
+__all__ = ["Capture", "FaceMesh", "Region", "Binding", "FrameRange"]

@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 
+from ..model.timing import FrameRange
 from ..options import TransferOptions
 from ..progress import progress
 from ..registry import Result
@@ -62,9 +63,9 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
         frames_per_chunk = max(1, min(DEFAULT_CHUNK_FRAMES, CHUNK_BYTES // (12 * mesh.n_points)))
         chunks = solver.iter_chunks(disp, chunk_frames=frames_per_chunk, offset=mesh.points, extents=True,
                                     blas_threads=1, buffers=PREFETCH_BUFFERS)
-        write_animation_layer(out, chunks, mesh_path=mesh_path, rest_points=None, start=capture.start_frame,
-                              rate=capture.rate, n_frames=capture.n_frames, units=mesh.units, transfer=settings,
-                              prov=prov, progress=bar, head_motion=motion)
+        write_animation_layer(out, chunks, mesh_path=mesh_path,
+                              frames=FrameRange(capture.start_frame, capture.rate, capture.n_frames), units=mesh.units,
+                              transfer=settings, prov=prov, progress=bar, head_motion=motion)
     finally:
         bar.close()
     seconds = time.perf_counter() - t0

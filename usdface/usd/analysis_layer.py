@@ -12,6 +12,7 @@ from pxr import Sdf, Usd, UsdGeom, Vt
 
 from ..distance.matrices import DistanceMatrix
 from ..errors import InputError
+from ..model.timing import FrameRange
 from .layers import (add_sublayer, checkpoint, open_stage, output_layer, relative_asset_path, set_provenance,
                      set_stage_metadata)
 from .mesh_layer import find_mesh
@@ -126,8 +127,8 @@ def frame_extents(points: np.ndarray) -> np.ndarray:
     return np.stack([xyz.min(axis=2), xyz.max(axis=2)], axis=1)
 
 
-def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | None = None, start: float,
-                          rate: float, n_frames: int, units, transfer: dict, prov: dict, progress=None,
+def write_animation_layer(path, chunks, *, mesh_path, frames: FrameRange, units, transfer: dict, prov: dict,
+                          rest_points: np.ndarray | None = None, progress=None,
                           head_motion: np.ndarray | None = None) -> str:
     """Stream time-sampled points into an animation layer (.usdc), saving after every chunk.
 
@@ -136,6 +137,8 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | 
 
     Parameters
     ----------
+    frames : FrameRange
+        The layer's time codes (start, rate, number of frames).
     chunks : iterable of (slice, ndarray (f, N, 3) float32) or (slice, points, extents (f, 2, 3))
         Frames ``slice`` (0-based) and their vertex displacements from ``rest_points``, or, when
         ``rest_points`` is None, their vertex positions (mesh units). A third item gives each
@@ -152,6 +155,7 @@ def write_animation_layer(path, chunks, *, mesh_path, rest_points: np.ndarray | 
         head-stabilised.
     """
     require_registered()
+    start, rate, n_frames = frames.start, frames.rate, frames.frames
     mesh_stage = open_stage(mesh_path, what="mesh")
     mesh_prim_path = find_mesh(mesh_stage).GetPath()
     rest = None if rest_points is None else np.asarray(rest_points, dtype=np.float32)

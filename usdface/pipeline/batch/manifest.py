@@ -29,6 +29,7 @@ the same parser as the command line, so a manifest shot means what the command w
 """
 from __future__ import annotations
 
+import dataclasses
 import glob
 import os
 import re
@@ -146,11 +147,43 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
     except tomllib.TOMLDecodeError as exc:
         raise FormatError(f"manifest {path}: not valid TOML ({exc})") from None
     base = path.resolve().parent
-    out_base = Path(out_root).resolve() if out_root is not None else base
     where = lambda table, index, key: _where(path, text, table, index, key)  # noqa: E731
-    allowed = shot_keys()
-    problems = []
+    batch, defaults, entries = _tables(path, data, where)
+    ctx = _Context(path=path, text=text, where=where, base=base, out_root=out_root,
+                   out_base=Path(out_root).resolve() if out_root is not None else base)
+    shots = []
+    for i, entry in enumerate(entries):
+        shots += _entry_shots(ctx, i, {**defaults, **entry}, entry)
+    cache = batch.get("cache", ".usdface-cache")
+    cache_path = None if cache is False else str(_output_path(cache, ctx.out_base))
+    summary_path = str(_output_path(batch.get("summary", "usdface-batch-summary.json"), ctx.out_base))
+    for key, value in (("cache", cache_path), ("summary", summary_path)):
+        problem = _outside(value, out_root, ctx.out_base, f"{where('batch', None, key)}: {key} = {batch.get(key)!r}")
+        if value is not None and problem:
+            ctx.problems.append(problem)
+    _raise_problems(ctx, check_files)
+    _check_outputs(path, shots, cache_path, summary_path)
+    return Manifest(path=path, shots=shots, cache=cache_path, summary=summary_path,
+                    workers=batch.get("workers"), scheduler=batch.get("scheduler"))
 
+
+@dataclass
+class _Context:
+    """What expanding a manifest's entries needs, and the problems found so far."""
+
+    path: Path
+    text: str
+    where: object
+    base: Path
+    out_root: object
+    out_base: Path
+    problems: list = field(default_factory=list)
+    missing: list = field(default_factory=list)
+
+
+def _tables(path: Path, data: dict, where) -> tuple[dict, dict, list]:
+    """([batch], [defaults], [[shots]]), their keys checked (FormatError naming every bad one)."""
+    problems = []
     for key in data:
         if key not in ("batch", "defaults", "shots"):
             problems.append(f"{where(None, None, key)}: unknown key or table {key!r}; a manifest has [batch], "
@@ -168,7 +201,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                             f"{', '.join(BATCH_KEYS)}")
         elif not isinstance(value, BATCH_KEYS[key]) or (key == "cache" and value is True):
             problems.append(f"{where('batch', None, key)}: {key} = {value!r} has the wrong type")
-    valid_keys = set(allowed) | _SHOT_ONLY
+    valid_keys = set(shot_keys()) | _SHOT_ONLY
     hint = "; expected the long options of `usdface run` in snake_case: " + ", ".join(sorted(valid_keys))
     for key in defaults:
         if key not in valid_keys:
@@ -180,78 +213,90 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
                                 f"{_suggest(key, valid_keys)}{hint}")
     if problems:
         raise FormatError("\n".join(problems))
+    return batch, defaults, entries
 
-    shots, missing = [], []
-    for i, entry in enumerate(entries):
-        merged = {**defaults, **entry}
-        line = _header_line(text, "shots", i)
-        label = f"manifest {path} line {line}" if line else f"manifest {path} shot entry {i + 1}"
-        for req in ("mesh", "capture", "output"):
-            if req not in merged:
-                problems.append(f"{label}: shot entry {i + 1} has no {req!r}")
-        if "layout" not in merged and not merged.get("auto"):
-            problems.append(f"{label}: shot entry {i + 1} needs a layout or auto = true")
-        if problems:
-            continue
-        processors = merged.get("processors", ["run"])
-        if isinstance(processors, str):
-            processors = [processors]
-        known = shot_steps()
-        bad = [p for p in processors if p not in known]
-        if bad or "run" not in processors:
-            problems.append(f"{where('shots', i, 'processors') if 'processors' in entry else label}: processors "
+
+def _entry_shots(ctx: _Context, i: int, merged: dict, entry: dict) -> list:
+    """The shots of ``[[shots]]`` entry ``i`` (every mesh x capture its globs match); problems and
+    missing files go to ``ctx``."""
+    path, where = ctx.path, ctx.where
+    line = _header_line(ctx.text, "shots", i)
+    label = f"manifest {path} line {line}" if line else f"manifest {path} shot entry {i + 1}"
+    for req in ("mesh", "capture", "output"):
+        if req not in merged:
+            ctx.problems.append(f"{label}: shot entry {i + 1} has no {req!r}")
+    if "layout" not in merged and not merged.get("auto"):
+        ctx.problems.append(f"{label}: shot entry {i + 1} needs a layout or auto = true")
+    if ctx.problems:
+        return []
+    processors = merged.get("processors", ["run"])
+    if isinstance(processors, str):
+        processors = [processors]
+    known = shot_steps()
+    bad = [p for p in processors if p not in known]
+    if bad or "run" not in processors:
+        ctx.problems.append(f"{where('shots', i, 'processors') if 'processors' in entry else label}: processors "
                             f"{processors!r}: expected a list of {', '.join(known)} including 'run'")
-            continue
-        meshes = _expand(merged["mesh"], base, "mesh", label, missing)
-        captures = _expand(merged["capture"], base, "capture", label, missing)
-        for mesh in meshes:
-            for capture in captures:
-                names = {"mesh": Path(mesh).stem, "capture": Path(capture).stem}
-                try:
-                    output = str(_output_path(str(merged["output"]).format(**names), out_base))
-                    layout = None
-                    if merged.get("layout") is not None:
-                        found = _expand(str(merged["layout"]).format(**names), base, "layout", label, missing)
-                        layout = found[0] if found else None
-                except (KeyError, IndexError, ValueError) as exc:
-                    problems.append(f"{label}: bad placeholder {exc} (use {{mesh}} and {{capture}})")
-                    continue
-                options = _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems)
-                if options is None:
-                    continue
-                if isinstance(options.get("stiffness"), str):  # a JSON file of widths
-                    st = _resolve(options["stiffness"], base)
-                    if not st.is_file():
-                        missing.append(f"{label}: stiffness {st}")
-                    options["stiffness"] = str(st)
-                if options.get("seeds"):  # a video's seed points, relative to the manifest like the rest
-                    sd = _resolve(options["seeds"], base)
-                    if not sd.is_file():
-                        missing.append(f"{label}: seeds {sd}")
-                    options["seeds"] = str(sd)
-                loc = where(*(("shots", i) if "output" in entry else ("defaults", None)), "output")
-                problem = _outside(output, out_root, out_base, f"{loc}: output = {merged['output']!r}")
-                if problem:
-                    problems.append(problem)
-                    continue
-                name = f"{names['mesh']}/{names['capture']}"
-                shots.append(Shot(name=name, mesh=mesh, capture=capture, output=output, options=options,
-                                  processors=tuple(p for p in known if p in processors), layout=layout,
-                                  entry=i, line=line))
-    cache = batch.get("cache", ".usdface-cache")
-    cache_path = None if cache is False else str(_output_path(cache, out_base))
-    summary_path = str(_output_path(batch.get("summary", "usdface-batch-summary.json"), out_base))
-    for key, value in (("cache", cache_path), ("summary", summary_path)):
-        problem = _outside(value, out_root, out_base, f"{where('batch', None, key)}: {key} = {batch.get(key)!r}")
-        if value is not None and problem:
-            problems.append(problem)
-    missing = list(dict.fromkeys(missing))
-    problems = list(dict.fromkeys(problems))  # a shot entry expands to many shots: report once
+        return []
+    shots = []
+    meshes = _expand(merged["mesh"], ctx.base, "mesh", label, ctx.missing)
+    captures = _expand(merged["capture"], ctx.base, "capture", label, ctx.missing)
+    for mesh in meshes:
+        for capture in captures:
+            shot = _shot(ctx, i, merged, entry, (mesh, capture, label, line))
+            if shot is not None:
+                shots.append(dataclasses.replace(shot, processors=tuple(p for p in known if p in processors)))
+    return shots
+
+
+def _shot(ctx: _Context, i: int, merged: dict, entry: dict, what: tuple) -> Shot | None:
+    """One mesh x capture pair of entry ``i`` as a Shot (None, with the problem in ``ctx``)."""
+    mesh, capture, label, line = what
+    names = {"mesh": Path(mesh).stem, "capture": Path(capture).stem}
+    try:
+        output = str(_output_path(str(merged["output"]).format(**names), ctx.out_base))
+        layout = None
+        if merged.get("layout") is not None:
+            found = _expand(str(merged["layout"]).format(**names), ctx.base, "layout", label, ctx.missing)
+            layout = found[0] if found else None
+    except (KeyError, IndexError, ValueError) as exc:
+        ctx.problems.append(f"{label}: bad placeholder {exc} (use {{mesh}} and {{capture}})")
+        return None
+    options = _parse_options(merged, shot_keys(), mesh, capture, layout, output, ctx.where, i, entry, ctx.problems)
+    if options is None:
+        return None
+    if isinstance(options.get("stiffness"), str):  # a JSON file of widths
+        st = _resolve(options["stiffness"], ctx.base)
+        if not st.is_file():
+            ctx.missing.append(f"{label}: stiffness {st}")
+        options["stiffness"] = str(st)
+    if options.get("seeds"):  # a video's seed points, relative to the manifest like the rest
+        sd = _resolve(options["seeds"], ctx.base)
+        if not sd.is_file():
+            ctx.missing.append(f"{label}: seeds {sd}")
+        options["seeds"] = str(sd)
+    loc = ctx.where(*(("shots", i) if "output" in entry else ("defaults", None)), "output")
+    problem = _outside(output, ctx.out_root, ctx.out_base, f"{loc}: output = {merged['output']!r}")
+    if problem:
+        ctx.problems.append(problem)
+        return None
+    return Shot(name=f"{names['mesh']}/{names['capture']}", mesh=mesh, capture=capture, output=output,
+                options=options, layout=layout, entry=i, line=line)
+
+
+def _raise_problems(ctx: _Context, check_files: bool) -> None:
+    """One InputError listing every problem (missing files first)."""
+    missing = list(dict.fromkeys(ctx.missing))
+    problems = list(dict.fromkeys(ctx.problems))  # a shot entry expands to many shots: report once
     if missing and check_files:
         problems.insert(0, f"{len(missing)} input file(s) not found:\n  " + "\n  ".join(missing))
     if problems:
-        raise InputError(f"manifest {path}:\n" + "\n".join(problems) if len(problems) > 1 or missing
+        raise InputError(f"manifest {ctx.path}:\n" + "\n".join(problems) if len(problems) > 1 or missing
                          else problems[0])
+
+
+def _check_outputs(path: Path, shots: list, cache_path, summary_path) -> None:
+    """Outputs that clash, overwrite an input, or cannot be written: an InputError before any work."""
     clashes = _clashes(shots, cache_path, summary_path)
     if clashes:
         raise InputError(f"manifest {path}: shots share an output folder (name outputs with {{mesh}} and "
@@ -266,8 +311,6 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
         unwritable += _unwritable([cache_path], what="cache folder")
     if unwritable:
         raise InputError(f"manifest {path}: cannot write:\n  " + "\n  ".join(unwritable))
-    return Manifest(path=path, shots=shots, cache=cache_path, summary=summary_path,
-                    workers=batch.get("workers"), scheduler=batch.get("scheduler"))
 
 
 def _parse_options(merged, allowed, mesh, capture, layout, output, where, i, entry, problems) -> dict | None:
