@@ -18,6 +18,7 @@ import argparse
 import dataclasses
 import json
 import sys
+from pathlib import Path
 
 
 #: usdface 0.2.0 had no registry: the options class of the commands whose fields' defaults differ
@@ -32,11 +33,13 @@ def _option_defaults(command: str) -> dict:
 
     found = {}
     classes = []
-    try:  # the registry knows each command's options class
+    import usdface
+
+    if (Path(usdface.__file__).parent / "registry").is_dir():  # the registry knows each command's options class
         from usdface.registry import find
 
         classes.append(find(command).options)
-    except ImportError:
+    else:
         if command in _OLD_COMMAND_OPTIONS:
             classes.append(getattr(options_module, _OLD_COMMAND_OPTIONS[command]))
     classes += [getattr(options_module, n) for n in dir(options_module)]
@@ -95,9 +98,13 @@ def surface(parser: argparse.ArgumentParser) -> dict:
 
 
 def main() -> int:
-    try:
+    import usdface
+
+    # a tree with the console package (0.3) or without it (0.2): decided by the tree's files, since an
+    # editable install elsewhere could otherwise supply a module the tree lacks
+    if (Path(usdface.__file__).parent / "console").is_dir():
         from usdface.console.parser import build_parser
-    except ImportError:
+    else:
         from usdface.cli import build_parser
     json.dump(surface(build_parser()), sys.stdout, indent=1, sort_keys=True)
     print()

@@ -49,8 +49,7 @@ def api_coverage(root: Path) -> tuple[int, int]:
     in a fresh interpreter."""
     code = (
         "import argparse, json, importlib\n"
-        "try:\n    from usdface.console import build_parser\nexcept ImportError:\n"
-        "    from usdface.cli import build_parser\n"
+        f"from usdface.{'console' if (root / 'usdface' / 'console').is_dir() else 'cli'} import build_parser\n"
         "import usdface.api as api\n"
         "leaves = []\n"
         "def walk(p, w):\n"
@@ -60,9 +59,11 @@ def api_coverage(root: Path) -> tuple[int, int]:
         "walk(build_parser(), [])\n"
         "names = [l.replace('-', '_').replace(' ', '_') for l in leaves]\n"
         "print(json.dumps([sum(callable(getattr(api, n, None)) for n in names), len(names)]))\n")
-    out = subprocess.run([sys.executable, "-c", code], env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"},
-                         capture_output=True, text=True, cwd=root)
-    return tuple(json.loads(out.stdout)) if out.returncode == 0 else (-1, -1)
+    env = dict(__import__("os").environ, PYTHONPATH=str(root))
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=root)
+    if out.returncode != 0:
+        raise RuntimeError(f"API coverage of {root}: {out.stderr.strip()[-500:]}")
+    return tuple(json.loads(out.stdout))
 
 
 def measure(root: Path) -> dict:

@@ -384,6 +384,23 @@ def write_error(path: str | os.PathLike, exc: BaseException | None = None):
     return WriteError(f"cannot write {path}: {failure_cause(path, exc)}")
 
 
+def is_environment_fault(exc: BaseException) -> bool:
+    """Whether ``exc`` is a fault of the environment (the file system, memory, USD's C++ layer) that
+    reaches the user as one line and exit 1, rather than a bug whose traceback a report needs. The
+    one classifier the command line, `run` and batch use."""
+    return isinstance(exc, (OSError, MemoryError)) or type(exc).__module__.startswith("pxr")
+
+
+def environment_fault(exc: BaseException, prefix: str = ""):
+    """The usdface error an environment fault becomes: ResourceError (memory), WriteError (file
+    system) or EnvironmentFault (USD), with :func:`describe_exception`'s line after ``prefix``."""
+    from .errors import EnvironmentFault, ResourceError, WriteError
+
+    kind = ResourceError if isinstance(exc, MemoryError) else WriteError if isinstance(exc, OSError) \
+        else EnvironmentFault
+    return kind(prefix + describe_exception(exc))
+
+
 def describe_exception(exc: BaseException) -> str:
     """One line for any error reaching the user: usdface's own message, or the file and cause of
     an OSError, the size of a failed allocation, the first line of a USD (Tf) error."""

@@ -133,9 +133,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name}: interrupted; partial work removed", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - file system, memory and USD errors: one line, exit 1
-        if not isinstance(exc, (OSError, MemoryError)) and not type(exc).__module__.startswith("pxr"):
+        from ..fileutil import describe_exception, is_environment_fault
+
+        if not is_environment_fault(exc):
             raise  # a bug: the traceback is what a report needs
-        from ..fileutil import describe_exception
 
         print(f"{name}: error: {describe_exception(exc)}", file=sys.stderr)
         return 1

@@ -29,24 +29,24 @@ class StereoOptions(Options):
     ground_truth: str | None = option(None, flag="--ground-truth", coerce=path, metavar="GT", group="stereo",
                                       help="ground-truth disparity (.npz .pfm .exr .npy .tif; inf/NaN where unknown): "
                                            "print the bad-pixel rate of the map (missing pixels count as bad)")
-    bad_threshold: float = option(2.0, flag="--bad-threshold", coerce=positive_float, cli_type=float, metavar="PX",
+    bad_threshold: float = option(2.0, flag="--bad-threshold", coerce=positive_float, type=float, metavar="PX",
                                   group="stereo", help="--ground-truth: a pixel is bad when |d - gt| exceeds this")
-    min_disparity: int | None = option(None, flag="--min-disparity", coerce=integer, cli_type=int, group="stereo",
+    min_disparity: int | None = option(None, flag="--min-disparity", coerce=integer, type=int, group="stereo",
                                        help="smallest disparity searched (px)")
-    num_disparities: int | None = option(None, flag="--num-disparities", coerce=positive_int, cli_type=int,
+    num_disparities: int | None = option(None, flag="--num-disparities", coerce=positive_int, type=int,
                                          group="stereo", help="number of disparities searched (default 64)")
-    depth_range: tuple | None = option(None, flag="--depth-range", coerce=depth_range_value, cli_type=float,
+    depth_range: tuple | None = option(None, flag="--depth-range", coerce=depth_range_value, type=float,
                                        nargs=2, metavar=("NEAR", "FAR"), group="stereo",
                                        help="depth range in calibration units; sets the disparity range")
     vertical: bool | None = option(None, flag="--vertical", coerce=boolean, action="store_true", group="stereo",
                                    help="vertical rig (second camera below the first) when there is no calibration")
     surface: str = option("grid", flag="--surface", choices=SURFACES, group="stereo",
                           help="how the scan mesh is made from the depth map")
-    step: int = option(2, flag="--step", coerce=positive_int, cli_type=int, group="stereo",
+    step: int = option(2, flag="--step", coerce=positive_int, type=int, group="stereo",
                        help="pixel subsampling of the scan mesh")
-    max_cycles: int = option(3, flag="--max-cycles", coerce=positive_int, cli_type=int, group="stereo",
+    max_cycles: int = option(3, flag="--max-cycles", coerce=positive_int, type=int, group="stereo",
                              help="graph cut: expansion cycles")
-    time_limit: float | None = option(None, flag="--time-limit", coerce=positive_float, cli_type=float, group="stereo",
+    time_limit: float | None = option(None, flag="--time-limit", coerce=positive_float, type=float, group="stereo",
                                       help="graph cut: seconds after which no new expansion starts")
 
 
@@ -56,7 +56,7 @@ class DetectOptions(Options):
 
     aam: str | None = option(None, flag="--aam", coerce=path, group="detection",
                              help="AAM model (.npz, from `usdface landmarks train`)")
-    min_size: int | None = option(None, flag="--min-size", coerce=positive_int, cli_type=int, group="detection",
+    min_size: int | None = option(None, flag="--min-size", coerce=positive_int, type=int, group="detection",
                                   help="smallest face side in pixels")
 
 
@@ -68,7 +68,7 @@ class LandmarksTrainOptions(Options):
                                    help="landmarks JSON of a single IMAGE")
     points_dir: str | None = option(None, flag="--points-dir", coerce=path, group="training",
                                     help="folder of the point files (default: beside each image)")
-    augment: int | None = option(None, flag="--augment", coerce=integer, cli_type=int, group="training",
+    augment: int | None = option(None, flag="--augment", coerce=integer, type=int, group="training",
                                  help="jittered copies per image (default 40 with --landmarks, else 0)")
 
 
@@ -87,12 +87,12 @@ class RegisterOptions(Options):
                                help="without --landmarks: the first stereo image to detect the landmarks on")
     aam: str | None = option(None, flag="--aam", coerce=path, group="registration",
                              help="without --landmarks: AAM model for --image")
-    iterations: int = option(20, flag="--iterations", coerce=positive_int, cli_type=int, group="registration",
+    iterations: int = option(20, flag="--iterations", coerce=positive_int, type=int, group="registration",
                              help="closest-point iterations")
     border: bool = option(False, flag="--border", coerce=boolean, group="registration",
                           help="also match the generic's outer border to the scan's (for scans cropped like the "
                                "generic)")
-    field: int = option(0, flag="--field", coerce=integer, cli_type=int, metavar="N", group="registration",
+    field: int = option(0, flag="--field", coerce=integer, type=int, metavar="N", group="registration",
                         help="iterations of the smooth-field stage before the projection (8 with --border for scans "
                              "cropped like the generic)")
 
@@ -114,9 +114,9 @@ class ShapesTransferOptions(Options):
                               "(Sumner & Popovic 2004) following the target's local shape")
     border: bool = option(True, flag="--no-border", coerce=boolean, group="registration",
                           help="do not match the outer borders (for targets not cropped like the generic)")
-    field: int = option(8, flag="--field", coerce=integer, cli_type=int, metavar="N", group="registration",
+    field: int = option(8, flag="--field", coerce=integer, type=int, metavar="N", group="registration",
                         help="registration smooth-field iterations")
-    iterations: int = option(20, flag="--iterations", coerce=positive_int, cli_type=int, group="registration",
+    iterations: int = option(20, flag="--iterations", coerce=positive_int, type=int, group="registration",
                              help="registration closest-point iterations")
     mesh_units: str | None = option(None, flag="--mesh-units", choices=MESH_UNITS, group="mesh",
                                     help="units of mesh files")

@@ -31,7 +31,7 @@ def cache_value(value, flag):
 class BatchOptions(Options):
     """How `usdface batch` runs a manifest (each overrides the manifest's [batch] table)."""
 
-    workers: int | None = option(None, flag="--workers", coerce=workers_value, cli_type=int, metavar="N",
+    workers: int | None = option(None, flag="--workers", coerce=workers_value, type=int, metavar="N",
                                  group="scheduling",
                                  help="local worker processes (default: the manifest's, else one per core); 0: one "
                                       "shot after the other in this process, without Dask")
@@ -41,8 +41,7 @@ class BatchOptions(Options):
                           help="skip shots whose outputs exist with matching provenance (inputs, options, version)")
     force: bool = option(False, flag="--force", coerce=boolean, group="scheduling",
                          help="redo every shot, even current ones")
-    cache: Any = option(None, flag="--cache", coerce=cache_value, metavar="DIR", negate="--no-cache",
-                        negate_const=False, group="cache",
+    cache: Any = option(None, flag="--cache", coerce=cache_value, metavar="DIR", negate=("--no-cache", False), group="cache",
                         help="cache folder (default: the manifest's, else .usdface-cache)")
     out_root: str | None = option(None, flag="--out-root", coerce=path, metavar="DIR", group="paths",
                                   help="resolve relative outputs, cache and summary against DIR instead of the "

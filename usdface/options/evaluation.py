@@ -51,17 +51,17 @@ class EvaluateOptions(Options):
                                 help="evaluate only these shapes (names or glob patterns)")
     skip: tuple | None = option(None, flag="--skip", coerce=names_value, nargs="+", metavar="NAME", group="shapes",
                                 help="skip these shapes (names or glob patterns)")
-    min_displacement: float = option(0.1, flag="--min-displacement", coerce=nonnegative_float, cli_type=float,
+    min_displacement: float = option(0.1, flag="--min-displacement", coerce=nonnegative_float, type=float,
                                      metavar="CM", group="shapes",
                                      help="skip shapes whose largest displacement is below this (cm)")
-    region_radius: float = option(1.5, flag="--region-radius", coerce=positive_float, cli_type=float, metavar="CM",
+    region_radius: float = option(1.5, flag="--region-radius", coerce=positive_float, type=float, metavar="CM",
                                   group="regions",
                                   help="mouth / eye error regions: vertices within this of the hole loops (cm)")
-    hybrid_radius: float = option(1.0, flag="--hybrid-radius", coerce=nonnegative_float, cli_type=float,
+    hybrid_radius: float = option(1.0, flag="--hybrid-radius", coerce=nonnegative_float, type=float,
                                   metavar="CM", group="regions", help="hybrid region radius (cm)")
-    sigma: float = option(2.0, flag="--sigma", coerce=positive_float, cli_type=float, metavar="CM", group="regions",
+    sigma: float = option(2.0, flag="--sigma", coerce=positive_float, type=float, metavar="CM", group="regions",
                           help="hybrid weight width (cm)")
-    threshold: float = option(0.6, flag="--threshold", coerce=unit_interval, cli_type=float, group="regions",
+    threshold: float = option(0.6, flag="--threshold", coerce=unit_interval, type=float, group="regions",
                               help="hybrid: geodesic term skipped where w <= this")
     no_per_shape: bool = option(False, flag="--no-per-shape", coerce=boolean, group="report",
                                 help="leave the per-shape table out")

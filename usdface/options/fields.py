@@ -21,25 +21,31 @@ from .values import choice
 __all__ = ["option", "Options", "NoOptions", "option_fields", "flag_of", "defaults_of", "GROUP_ORDER"]
 
 
-def option(default, *, flag: str, help: str, coerce: Callable | None = None, group: str,
-           choices: tuple | None = None, metavar=None, nargs=None, negate: str | None = None,
-           negate_const=None, const=None, action: str | None = None, cli_type: Callable | None = None) -> Any:
+def option(default, *, flag: str, help: str, group: str, coerce: Callable | None = None,
+           choices: tuple | None = None, negate=None, **cli) -> Any:
     """A dataclass field that is a usdface option (see the module docstring).
 
-    ``flag``: the long command-line flag; ``negate``: a second flag setting the value to
-    ``negate_const`` (``--no-stabilize``: None; ``--no-cache``: False); ``const``: value of the
-    flag given without an argument (``nargs="?"``). Booleans: a field defaulting to False is set by
-    ``flag``, one defaulting to True is cleared by ``--no-<name>`` (give that as ``flag``).
-    ``action``: an argparse action other than the one the default implies (``append``, or
-    ``store_true`` for a flag whose default is None). ``cli_type``: an argparse ``type`` for the
-    options whose command-line values argparse itself has always checked (``--frame 1.5``).
+    ``flag``: the long command-line flag; ``coerce(value, flag)``: checks and converts a value
+    (:mod:`usdface.options.values`; ``choices`` alone makes one); ``negate``: a second flag that
+    sets the value to None (``"--no-stabilize"``), or ``(flag, value)`` (``("--no-cache", False)``).
+    Booleans: a field defaulting to False is set by ``flag``, one defaulting to True is cleared by
+    ``--no-<name>`` (give that as ``flag``).
+
+    ``cli``: how argparse reads it: ``metavar``, ``nargs``, ``const`` (the value of a flag given
+    without an argument, ``nargs="?"``), ``action`` (``append``, or ``store_true`` for a flag whose
+    default is None) and ``type`` (for the options whose values argparse itself has always checked:
+    ``--frame 1.5``).
     """
+    unknown = set(cli) - {"metavar", "nargs", "const", "action", "type"}
+    if unknown:
+        raise TypeError(f"option {flag}: unknown argparse setting(s) {', '.join(sorted(unknown))}")
     if coerce is None and choices is not None:
         coerce = choice(*choices)
+    negate_flag, negate_const = (negate if isinstance(negate, tuple) else (negate, None))
     return field(default=default, metadata={
         "flag": flag, "help": help, "coerce": coerce, "group": group, "choices": choices,
-        "metavar": metavar, "nargs": nargs, "negate": negate, "negate_const": negate_const, "const": const,
-        "action": action, "cli_type": cli_type})
+        "metavar": cli.get("metavar"), "nargs": cli.get("nargs"), "negate": negate_flag, "negate_const": negate_const,
+        "const": cli.get("const"), "action": cli.get("action"), "cli_type": cli.get("type")})
 
 
 #: order of the option groups in `--help`

@@ -112,14 +112,14 @@ def frames_value(value, flag):
 class PreviewOptions(Options):
     """A software-rendered picture of a layer (`preview`)."""
 
-    frame: float | None = option(None, flag="--frame", coerce=number, cli_type=float, group="frames",
+    frame: float | None = option(None, flag="--frame", coerce=number, type=float, group="frames",
                                  help="time code to show (default: the layer's start)")
-    frames: tuple | None = option(None, flag="--frames", coerce=frames_value, cli_type=float, nargs="+",
+    frames: tuple | None = option(None, flag="--frames", coerce=frames_value, type=float, nargs="+",
                                   metavar="F", group="frames", help="several time codes: a contact sheet")
     view: str = option("front", flag="--view", choices=VIEWS, group="look",
                        help="camera (the list playblast shares; turntable turns only in a playblast: a still is "
                             "the front)")
-    size: int = option(768, flag="--size", coerce=positive_int, cli_type=int, group="look",
+    size: int = option(768, flag="--size", coerce=positive_int, type=int, group="look",
                        help="image size in pixels (square)")
     color: str = option("regions", flag="--color", choices=COLORS, group="look",
                         help="colour the surface by region, by displacement from the rest pose, by error against "
@@ -139,7 +139,7 @@ class ReportOptions(Options):
                                 help="no movie (faster)")
     playblast_size: tuple = option("640x360", flag="--playblast-size", coerce=movie_size_value, group="movie",
                                    help="size of the rendered playblast")
-    workers: int | None = option(None, flag="--workers", coerce=workers_value, cli_type=int, metavar="N",
+    workers: int | None = option(None, flag="--workers", coerce=workers_value, type=int, metavar="N",
                                  group="movie", help="playblast render workers (default: the usable cores)")
 
     def validate(self) -> None:

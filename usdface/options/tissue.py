@@ -67,16 +67,16 @@ class SimulateOptions(Options):
     integrator: str = option("implicit", flag="--integrator", choices=INTEGRATORS, group="simulation",
                              help="implicit (stable, default), explicit (the paper's forward Euler) or symplectic "
                                   "Euler")
-    dt: float | None = option(None, flag="--dt", coerce=positive_float, cli_type=float, group="simulation",
+    dt: float | None = option(None, flag="--dt", coerce=positive_float, type=float, group="simulation",
                               help="integration step in seconds (default: implicit 1/240; explicit and symplectic "
                                    "half their estimated stability limit)")
-    rate: float = option(24.0, flag="--rate", coerce=positive_float, cli_type=float, group="simulation",
+    rate: float = option(24.0, flag="--rate", coerce=positive_float, type=float, group="simulation",
                          help="frames per second of an expression")
-    ramp: int = option(12, flag="--ramp", coerce=positive_int, cli_type=int, group="simulation",
+    ramp: int = option(12, flag="--ramp", coerce=positive_int, type=int, group="simulation",
                        help="frames of the 0 -> 1 ramp of an expression")
-    hold: int = option(12, flag="--hold", coerce=positive_int_or_zero, cli_type=int, group="simulation",
+    hold: int = option(12, flag="--hold", coerce=positive_int_or_zero, type=int, group="simulation",
                        help="frames the expression is held after the ramp")
-    intensity: float = option(1.0, flag="--intensity", coerce=nonnegative_float, cli_type=float, group="simulation",
+    intensity: float = option(1.0, flag="--intensity", coerce=nonnegative_float, type=float, group="simulation",
                               help="scale of the preset's contractions, 0..1")
     tissue: tuple | None = option(None, flag="--tissue", coerce=pairs_value, action="append", metavar="KEY=VALUE",
                                   group="simulation", help="override a tissue option")
@@ -86,13 +86,13 @@ class SimulateOptions(Options):
 class FitMusclesOptions(Options):
     """Fitting muscle contractions to captured markers (`fit-muscles`)."""
 
-    step: int = option(1, flag="--step", coerce=positive_int, cli_type=int, group="fit",
+    step: int = option(1, flag="--step", coerce=positive_int, type=int, group="fit",
                        help="fit every N-th capture frame")
-    frames: tuple | None = option(None, flag="--frames", coerce=frames_range_value, cli_type=int, nargs=2,
+    frames: tuple | None = option(None, flag="--frames", coerce=frames_range_value, type=int, nargs=2,
                                   metavar=("FIRST", "END"), group="fit", help="capture frames FIRST..END-1 only")
-    refine: int = option(2, flag="--refine", coerce=positive_int_or_zero, cli_type=int, group="fit",
+    refine: int = option(2, flag="--refine", coerce=positive_int_or_zero, type=int, group="fit",
                          help="refinement passes by simulation")
-    regularization: float = option(1e-3, flag="--regularization", coerce=nonnegative_float, cli_type=float,
+    regularization: float = option(1e-3, flag="--regularization", coerce=nonnegative_float, type=float,
                                    group="fit", help="Tikhonov weight of the fit")
     stabilize: str = option("auto", flag="--stabilize", choices=("auto", "none"), group="fit",
                             help="remove head motion first when the capture layer is not stabilised")

@@ -19,24 +19,24 @@ class TrackOptions(Options):
     seeds: str | None = option(None, flag="--seeds", coerce=path, metavar="SEEDS.json", group="video capture",
                                help='seed points on the first frame: {"Chin": [x, y], ...} (pixels; integer = pixel '
                                     'centre, y down)')
-    auto: int | None = option(None, flag="--auto", coerce=positive_int, cli_type=int, metavar="N",
+    auto: int | None = option(None, flag="--auto", coerce=positive_int, type=int, metavar="N",
                               group="video capture", help="find N dots automatically on the first frame")
     layout: str | None = option(None, flag="--layout", coerce=path, metavar="L.json", group="video capture",
                                 help="marker layout to name --auto dots (front view)")
     mesh: str | None = option(None, flag="--mesh", coerce=path, metavar="M", group="video capture",
                               help="mesh for the layout's vertex entries")
-    radius: tuple = option((3.0, 10.0), flag="--radius", coerce=radius_value, cli_type=float, nargs=2,
+    radius: tuple = option((3.0, 10.0), flag="--radius", coerce=radius_value, type=float, nargs=2,
                            metavar=("R1", "R2"), group="video capture", help="dot radius range in pixels")
-    rate: float | None = option(None, flag="--rate", coerce=positive_float, cli_type=float, metavar="HZ",
+    rate: float | None = option(None, flag="--rate", coerce=positive_float, type=float, metavar="HZ",
                                 group="video capture", help="frames per second (default: the container's)")
-    threshold: float = option(4.0, flag="--threshold", coerce=positive_float, cli_type=float, group="video capture",
+    threshold: float = option(4.0, flag="--threshold", coerce=positive_float, type=float, group="video capture",
                               help="Mahalanobis distance threshold")
-    min_std: float = option(8.0, flag="--min-std", coerce=nonnegative_float, cli_type=float, metavar="LEVELS",
+    min_std: float = option(8.0, flag="--min-std", coerce=nonnegative_float, type=float, metavar="LEVELS",
                             group="video capture",
                             help="colour covariance floor in 8-bit levels (regularises degenerate models)")
-    gate: float | None = option(None, flag="--gate", coerce=positive_float, cli_type=float, metavar="PX",
+    gate: float | None = option(None, flag="--gate", coerce=positive_float, type=float, metavar="PX",
                                 group="video capture", help="association gate (default: half the smallest spacing)")
-    preview_frame: int | None = option(None, flag="--preview-frame", coerce=integer, cli_type=int, metavar="F",
+    preview_frame: int | None = option(None, flag="--preview-frame", coerce=integer, type=int, metavar="F",
                                        group="video capture", help="frame for --preview (default: the middle)")
 
 
@@ -52,7 +52,7 @@ class LiftOptions(PlausibilityOptions):
                                     help="units of a mesh file that does not say (OBJ: default cm)")
     depth: str = option("zero", flag="--depth", choices=("zero", "tangent"), group="video capture",
                         help="depth change: none (default), or slide on the tangent plane at the bound point")
-    neutral: int | None = option(None, flag="--neutral", coerce=integer, cli_type=int, metavar="FRAME",
+    neutral: int | None = option(None, flag="--neutral", coerce=integer, type=int, metavar="FRAME",
                                  group="video capture", help="neutral frame index (default: the tracks')")
-    rate: float | None = option(None, flag="--rate", coerce=positive_float, cli_type=float, metavar="HZ",
+    rate: float | None = option(None, flag="--rate", coerce=positive_float, type=float, metavar="HZ",
                                 group="video capture", help="track rate when a CSV does not declare it")

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import registry
-from ..errors import EnvironmentFault, OptionError, ResourceError, UsdFaceError, WriteError
+from ..errors import OptionError, UsdFaceError
+from ..fileutil import environment_fault, is_environment_fault
 from ..io.video import is_video
 from ..options import (DELIVERABLES, BindOptions, CaptureOptions, ImportMeshOptions, LiftOptions, RunOptions,
                        TrackOptions)
@@ -169,14 +170,11 @@ def run(mesh, capture, *, options: RunOptions, output, cache=None) -> Result:
         message = str(exc).replace(str(work) + os.sep, str(out) + os.sep).replace(str(work), str(out))
         raise type(exc)(f"{failed} step failed: {message}") from None
     except Exception as exc:  # noqa: BLE001 - file system, memory and USD errors become one line
-        from ..fileutil import describe_exception
-
-        if not isinstance(exc, (OSError, MemoryError)) and not type(exc).__module__.startswith("pxr"):
+        if not is_environment_fault(exc):
             raise
-        message = describe_exception(exc).replace(str(work) + os.sep, str(out) + os.sep).replace(str(work), str(out))
-        kind = ResourceError if isinstance(exc, MemoryError) else WriteError if isinstance(exc, OSError) \
-            else EnvironmentFault
-        raise kind(f"{_failed_step(job)} step failed: {message}") from None
+        fault = environment_fault(exc, f"{_failed_step(job)} step failed: ")
+        raise type(fault)(str(fault).replace(str(work) + os.sep, str(out) + os.sep).replace(str(work), str(out))) \
+            from None
     finally:
         session.close()
         _remove_created(created, out)

@@ -68,12 +68,12 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
         rec["error"] = str(exc)
         rec["status"] = "unsupported" if getattr(exc, "unsupported", False) else "failed"
     except Exception as exc:  # noqa: BLE001 - a bug or a library error must not stop the batch
-        from ...fileutil import describe_exception
+        from ...fileutil import describe_exception, is_environment_fault
 
         # file system, memory and USD errors: one line naming the file and the cause; a bug keeps
         # its traceback in the summary for the report
         rec["error"] = describe_exception(exc)
-        if not isinstance(exc, (OSError, MemoryError)) and not type(exc).__module__.startswith("pxr"):
+        if not is_environment_fault(exc):
             rec["traceback"] = traceback.format_exc(limit=8)
     rec["seconds"] = round(time.perf_counter() - started, 3)
     return rec
