@@ -34,7 +34,8 @@ def checkout(rev: str, where: Path) -> Path:
 def timed(tree: Path, argv: list[str]) -> float:
     env = dict(os.environ, PYTHONPATH=str(tree))
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "usdface", *argv], env=env, capture_output=True, text=True)
+    # cwd=tree: `python -m` puts the working folder first on sys.path, before PYTHONPATH
+    proc = subprocess.run([sys.executable, "-m", "usdface", *argv], env=env, capture_output=True, text=True, cwd=tree)
     seconds = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(f"{tree}: usdface {' '.join(argv[:1])} failed: {proc.stderr.strip()[-300:]}")

@@ -84,10 +84,15 @@ def run_tree(tree: Path, job: str, work: Path) -> tuple[float, list[str]]:
     out.mkdir(parents=True)
     env = dict(os.environ, PYTHONPATH=str(tree), PYTHONHASHSEED="0")
     errors = []
+    loaded = subprocess.run([sys.executable, "-c", "import usdface; print(usdface.__file__)"], env=env, cwd=tree,
+                            capture_output=True, text=True).stdout.strip()
+    if not Path(loaded).resolve().is_relative_to(Path(tree).resolve()):
+        raise SystemExit(f"the tree {tree} did not load its own usdface ({loaded})")
     t0 = time.perf_counter()
     for argv in jobs(sa, out)[job]:
+        # cwd=tree: `python -m` puts the working folder first on sys.path, before PYTHONPATH
         proc = subprocess.run([sys.executable, "-m", "usdface", *argv, "-q"], env=env, capture_output=True,
-                              text=True)
+                              text=True, cwd=tree)
         if proc.returncode != 0:
             errors.append(f"{' '.join(argv[:1])} exited {proc.returncode}: {proc.stderr.strip()[-400:]}")
     return time.perf_counter() - t0, errors
