@@ -1,0 +1,2 @@
+"""Pipelines: commands that compose processors (called through :func:`usdface.registry.call`) and
+the layers below them."""
