@@ -182,8 +182,8 @@ def test_blendshapes_step_on_run_layers(tmp_path, sample_assets):
     from usdface.usd.blendshape_layer import evaluate_curves_layer
 
     api.import_mesh(str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj"), output=tmp_path / "mesh.usdc")
-    api.import_capture(str(sample_assets / "capture" / "JawMoCap.ma"), CaptureOptions(stabilize="auto", trim=(300, 500)),
-                       output=tmp_path / "capture.usdc")
+    api.import_capture(str(sample_assets / "capture" / "JawMoCap.ma"),
+                       CaptureOptions(stabilize="auto", trim=(300, 500)), output=tmp_path / "capture.usdc")
     api.bind(tmp_path / "mesh.usdc", tmp_path / "capture.usdc",
              {"layout": str(sample_assets / "layouts" / "makehuman_hm08_face.layout.json")},
              output=tmp_path / "binding.usda")
@@ -199,9 +199,9 @@ def test_blendshapes_step_on_run_layers(tmp_path, sample_assets):
     assert s["frames"] == 200 and s["residualMean"] < s["stillResidualMean"]
     assert s["shotStage"] == {"rate": 60.0, "start": 0, "end": 199, "units": "cm", "stabilizedCapture": False}
     st = s["shotStage"]
-    write_shot_stage(tmp_path / "shot_blendshapes.usda", layers=[tmp_path / "blendshapes.usdc", tmp_path / "binding.usda"],
-                     rate=st["rate"], start=st["start"], end=st["end"], units=st["units"],
-                     stabilized_capture=st["stabilizedCapture"])
+    write_shot_stage(tmp_path / "shot_blendshapes.usda",
+                     layers=[tmp_path / "blendshapes.usdc", tmp_path / "binding.usda"], rate=st["rate"],
+                     start=st["start"], end=st["end"], units=st["units"], stabilized_capture=st["stabilizedCapture"])
     _, shot = evaluate_curves_layer(tmp_path / "shot_blendshapes.usda", times=[100.0])
     _, alone = evaluate_curves_layer(tmp_path / "blendshapes.usdc", times=[100.0])
     assert np.allclose(shot, alone)
@@ -277,3 +277,38 @@ def test_corrective_points_shot_hits_the_markers(tmp_path, sample_assets):
         hit = binding.surface_points(p) - binding.surface_points(mesh.points)
         worst = max(worst, float(np.abs(hit - d[f]).max()))
     assert worst < 1e-3  # the residual the rig leaves (up to ~0.5 cm) is transferred: markers hit
+
+
+def test_solve_in_memory_writes_no_file(tmp_path, sample_assets, monkeypatch):
+    """api.solve without an output path authors the curves into a new in-memory layer (or ``into``);
+    nothing touches the disk (the working folder is read-only), and the layer holds the curves the
+    files would."""
+    from pxr import Sdf
+
+    from usdface import api
+    from usdface.errors import OptionError
+    from usdface.options import SolveOptions
+    from usdface.usd.blendshape_layer import read_curves_layer
+
+    options = SolveOptions(shapes=str(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz"),
+                           layout=str(sample_assets / "layouts" / "makehuman_hm08_face.layout.json"), trim=(0, 120))
+    mesh = str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")
+    take = str(sample_assets / "capture" / "NoseMoCap.ma")
+    work = tmp_path / "ro"
+    work.mkdir()
+    work.chmod(0o555)
+    monkeypatch.chdir(work)
+    try:
+        result = api.solve(mesh, take, options=options)
+        into = Sdf.Layer.CreateAnonymous("curves.usda")
+        again = api.solve(mesh, take, options=options, into=into)
+        with pytest.raises(OptionError, match="--corrective: name the points shot"):
+            api.solve(mesh, take, options=options, corrective=True)
+    finally:
+        work.chmod(0o755)
+    assert list(work.iterdir()) == []
+    assert isinstance(result.layer, Sdf.Layer) and result.layer.anonymous and again.layer is into
+    curves = read_curves_layer(result.layer)
+    assert curves["weights"].shape == (120, 52) and curves["rate"] == 60.0
+    assert np.array_equal(read_curves_layer(into)["weights"], curves["weights"])
+    assert result.summary["output"].startswith("in-memory layer") and result.summary["residualMean"] > 0

@@ -83,8 +83,8 @@ class SkelLayerOptions(SkelOptions, TransferOptions):
     """Everything `usdface skel` takes: the transfer it reproduces and the skeleton's options."""
 
     skin_weights: str = _skin_weights_field()
-    negative_weights: str | None = option(None, flag="--negative-weights", choices=tuple(sorted(NEGATIVE_WEIGHTS_ALIAS)),
-                                          group="skeleton",
+    negative_weights: str | None = option(None, flag="--negative-weights",
+                                          choices=tuple(sorted(NEGATIVE_WEIGHTS_ALIAS)), group="skeleton",
                                           help="deprecated: keep = --skin-weights exact, clamp = --skin-weights dcc")
     verify: bool = option(True, flag="--no-verify", coerce=boolean, group="skeleton",
                           help="skip deforming the written layer with UsdSkel to measure its error")

@@ -54,8 +54,9 @@ def solve(mesh, capture=None, apply=None, *, options: SolveOptions, output, csv=
 
     files = CurveFiles(output, csv, livelink)
     if apply is not None:
-        extra = [flag for flag, given in (("--capture", capture), ("--layout", options.layout), ("--auto", options.auto),
-                                          ("--corrective", corrective)) if given]
+        given = (("--capture", capture), ("--layout", options.layout), ("--auto", options.auto),
+                 ("--corrective", corrective))
+        extra = [flag for flag, value in given if value]
         if extra:
             raise OptionError(f"--apply plays existing curves: {', '.join(extra)} do not apply")
         return _apply(apply, mesh, options, files)
@@ -125,8 +126,8 @@ def _check_outputs(mesh, capture, o: SolveOptions, files, corrective) -> dict:
             raise OptionError("--corrective: name the points shot to write (the curves layer is in memory)")
         corrective = Path(files.output).with_name(Path(files.output).stem + "_corrective.usdc")
     outs = check_outputs({"--mesh": mesh, "--shapes": o.shapes, "--capture": capture, "--layout": o.layout},
-                         {"-o": (files.output, "usd"), "--csv": (files.csv, "csv"), "--livelink": (files.livelink, "csv"),
-                          "--corrective": (corrective, "usd")})
+                         {"-o": (files.output, "usd"), "--csv": (files.csv, "csv"),
+                          "--livelink": (files.livelink, "csv"), "--corrective": (corrective, "usd")})
     for label, path in (("--capture", capture), ("--layout", o.layout)):
         if path is not None and not is_in_memory(path) and not Path(path).is_file():
             raise InputError(f"{label} {path}: no such file")
@@ -191,7 +192,8 @@ def _apply(curves_path, mesh, options: SolveOptions, files) -> Result:
     t0 = time.perf_counter()
     o, delivery = options, options.delivery()
     outs = check_outputs({"--apply": curves_path, "--mesh": mesh, "--shapes": o.shapes},
-                         {"-o": (files.output, "usd"), "--csv": (files.csv, "csv"), "--livelink": (files.livelink, "csv")})
+                         {"-o": (files.output, "usd"), "--csv": (files.csv, "csv"),
+                          "--livelink": (files.livelink, "csv")})
     cp = Path(curves_path)
     read = read_curve_file(cp)
     rig, regions = _rig(mesh, o, livelink=files.livelink is not None)

@@ -77,7 +77,8 @@ def shapes_transfer(target, landmarks, *, options: ShapesTransferOptions, output
     names = [n for n in glay.names if n in FACE_LANDMARKS] or list(glay.names)
     have, tl = _target_landmarks(landmarks, names, tmesh)
     if len(have) < MIN_LANDMARKS:
-        raise InputError(f"shapes transfer: only {len(have)} landmark(s) shared by {landmarks} and {generic_landmarks}; "
+        raise InputError(f"shapes transfer: only {len(have)} landmark(s) shared by {landmarks} and "
+                         f"{generic_landmarks}; "
                          f"at least {MIN_LANDMARKS} are needed (20 recommended)")
     reg = GenericRegistration(rig.mesh, g_regions, glay.positions(rig.mesh, have)).register(
         tmesh.points, tmesh.triangles(), tl, iterations=o.iterations, border_weight=1.0 if o.border else 0.0,

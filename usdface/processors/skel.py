@@ -141,7 +141,8 @@ def _summary(out, inputs, rig, report, verified, *, rbf: str, seconds: float) ->
 def _text(summary: dict, skin, *, seconds: float) -> list[str]:
     """The lines ``usdface skel`` prints."""
     units, gaps = summary["units"], summary["gapFrames"]
-    errs = ", ".join(f"K={name}: max {v['max']:.3g} rms {v['rms']:.3g}" for name, v in summary["pointCacheError"].items())
+    errs = ", ".join(f"K={name}: max {v['max']:.3g} rms {v['rms']:.3g}"
+                     for name, v in summary["pointCacheError"].items())
     gap_text = ", ".join(f"K={name}: max {v['max']:.3g}" for name, v in summary["gapFrameError"].items())
     how = (f"DCC-safe weights fitted on the {'synthetic range of motion' if skin.skin_fit == 'rom' else 'take'}, "
            f"{skin.corrective_shapes} corrective shapes" if skin.mode == "dcc"

@@ -16,7 +16,8 @@ from ..lazy import lazy_exports
 _EXPORTS = {
     "DccSkin": "dcc", "fit_dcc_skin": "dcc", "initial_weights": "dcc", "rom_covariance": "dcc",
     "take_covariance": "dcc", "HEAD_JOINT": "joints", "SkeletonRig": "joints", "build_rig": "joints",
-    "head_motion_in_mesh_space": "joints", "capture_head_motion": "joints", "joint_names": "joints", "SkinWeights": "weights",
+    "head_motion_in_mesh_space": "joints", "capture_head_motion": "joints", "joint_names": "joints",
+    "SkinWeights": "weights",
     "full_weights": "weights", "prune_weights": "weights", "skinning_error": "weights",
     "SkelInputs": "fitting", "SkinFit": "fitting", "SkinParameters": "fitting", "apply_matrix": "fitting",
     "effective_displacements": "fitting", "fit_dcc": "fitting", "fit_skin": "fitting", "skel_inputs": "fitting",

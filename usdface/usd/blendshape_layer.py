@@ -46,8 +46,8 @@ from .layers import open_stage, output_layer, set_provenance, set_stage_metadata
 from .motion import author_head_motion
 from .mesh_layer import author_mesh, author_regions, mesh_from_prim, read_regions
 
-__all__ = ["UsdRig", "CurveSamples", "read_blendshape_rig", "write_curves_layer", "evaluate_curves_layer", "read_curves_layer",
-           "write_points_layer", "head_motion_of_layer", "SKELETON_NAME", "ANIM_NAME"]
+__all__ = ["UsdRig", "CurveSamples", "read_blendshape_rig", "write_curves_layer", "evaluate_curves_layer",
+           "read_curves_layer", "write_points_layer", "head_motion_of_layer", "SKELETON_NAME", "ANIM_NAME"]
 
 SKELETON_NAME = "Skeleton"
 ANIM_NAME = "Anim"

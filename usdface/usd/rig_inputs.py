@@ -60,7 +60,8 @@ def load_rig(mesh, shapes=None, *, mesh_units=None):
             usd_rig = _read_usd_rig(sp, mesh_units or neutral.units)
             check_same_topology(neutral, usd_rig.mesh, what=f"rig {sp}")
             check_neutral(usd_rig.mesh.points, neutral, source=str(sp))
-            rig = BlendShapeRig(tuple(usd_rig.names), usd_rig.deltas, neutral, source=str(sp), notes=tuple(usd_rig.notes))
+            rig = BlendShapeRig(tuple(usd_rig.names), usd_rig.deltas, neutral, source=str(sp),
+                                notes=tuple(usd_rig.notes))
         elif not sp.exists():
             raise InputError(f"--shapes {sp}: no such file or folder")
         else:
