@@ -41,7 +41,8 @@ def main(argv=None) -> int:
     from usdface.mesh.layout import read_layout
     from usdface.preview import contact_sheet, fit_camera, render_mesh, write_png
     from usdface.preview.curves import plot_curves, stack_panels
-    from usdface.processors.import_capture import condition_capture, load_capture
+    from usdface.capture.conditioning import Conditioning, condition_capture
+    from usdface.usd.inputs import load_capture
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="out/blendshape")
@@ -55,7 +56,7 @@ def main(argv=None) -> int:
     panels, cells, captions = [], [], []
     camera = None
     for take in ("Jaw", "Eyebrows", "Nose"):
-        cap, _ = condition_capture(load_capture(a / f"capture/{take}MoCap.ma"), stabilize="auto")
+        cap, _ = condition_capture(load_capture(a / f"capture/{take}MoCap.ma"), Conditioning(stabilize="auto"))
         binding = bind_layout(mesh, layout, cap)
         res = solve_take(rig, cap, binding)
         sol, d = res.solution, res.displacements

@@ -45,7 +45,7 @@ def mesh_error(rig_deltas, truth_w, est_deltas, est_w) -> float:
 
 def run(frames: int, seed: int, remove: str | None, options: dict, *, table: bool = True) -> dict:
     from usdface.blendshape.mirror import find_mirror_pairs
-    from usdface.blendshape.solver import CurveSolver
+    from usdface.blendshape.solver import CurveSolver, SolverParameters
     from usdface.blendshape.synthetic import observable_shapes, random_weight_curves, synthetic_take
     from usdface.blendshape.take import DEFAULT_EXCLUDE, resolve_exclude
 
@@ -61,7 +61,8 @@ def run(frames: int, seed: int, remove: str | None, options: dict, *, table: boo
         idx = [rig.index(n) for n in keep]
         solver = CurveSolver(basis[:, idx], names=keep, marker_names=binding.names,
                              symmetric_pairs=find_mirror_pairs(sub).symmetric_pairs,
-                             exclude=resolve_exclude(options.pop("exclude", DEFAULT_EXCLUDE), keep), **options)
+                             exclude=resolve_exclude(options.get("exclude", DEFAULT_EXCLUDE), keep),
+                             params=SolverParameters(**{k: v for k, v in options.items() if k != "exclude"}))
         t0 = time.perf_counter()
         sol = solver.solve(take.displacements, rate=take.rate)
         seconds = time.perf_counter() - t0

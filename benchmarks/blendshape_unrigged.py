@@ -50,7 +50,8 @@ def main(argv=None) -> int:
     from usdface.mesh.layout import read_layout
     from usdface.mesh.topology import find_hole_regions
     from usdface.processors.evaluate import binding_from_layout
-    from usdface.processors.shapes import transfer_shapes
+    from usdface import api
+    from usdface.options import ShapesTransferOptions
     from usdface.usd.blendshape_layer import read_blendshape_rig
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -83,12 +84,14 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for m in methods:
             t0 = time.perf_counter()
-            transfer_shapes(a / "meshes/makehuman_hm08_face_stylized_cm.obj", Path(tmp) / f"{m}.usdc",
-                                generic=a / "meshes/makehuman_hm08_face_cm.obj",
-                                generic_shapes=a / "meshes/makehuman_hm08_face_units_cm.npz",
-                                generic_landmarks=a / "landmarks/makehuman_hm08_face.landmarks.layout.json",
-                                landmarks=a / "landmarks/makehuman_hm08_face_stylized.landmarks.layout.json",
-                                method=m)
+            api.shapes_transfer(str(a / "meshes/makehuman_hm08_face_stylized_cm.obj"),
+                                str(a / "landmarks/makehuman_hm08_face_stylized.landmarks.layout.json"),
+                                ShapesTransferOptions(
+                                    generic=str(a / "meshes/makehuman_hm08_face_cm.obj"),
+                                    generic_shapes=str(a / "meshes/makehuman_hm08_face_units_cm.npz"),
+                                    generic_landmarks=str(a / "landmarks/makehuman_hm08_face.landmarks.layout.json"),
+                                    method=m),
+                                output=Path(tmp) / f"{m}.usdc")
             usd = read_blendshape_rig(Path(tmp) / f"{m}.usdc")
             rig = BlendShapeRig(tuple(usd.names), usd.deltas, target)
             rigs[m] = rig

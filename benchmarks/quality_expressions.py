@@ -202,10 +202,10 @@ def real_take(mesh, regions, layout) -> list[str]:
     from usdface.capture.retarget import marker_displacements
     from usdface.io.captures import read_capture
     from usdface.mesh.binding import bind_layout
-    from usdface.processors.import_capture import condition_capture
+    from usdface.capture.conditioning import Conditioning, condition_capture
 
     cap = read_capture(JAW)
-    cap, _ = condition_capture(cap, stabilize="auto")
+    cap, _ = condition_capture(cap, Conditioning(stabilize="auto"))
     bnd = bind_layout(mesh, layout, cap)
     disp = marker_displacements(cap, bnd.names, bnd.displacement_transform())
     mnorm = np.linalg.norm(disp, axis=2)

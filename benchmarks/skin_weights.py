@@ -49,9 +49,9 @@ KS = (4, 8, None)
 
 
 def _cli(*args) -> None:
-    import usdface.cli as cli
+    from usdface.cli import main
 
-    code = cli.main([str(a) for a in args] + ["-q"])
+    code = main([str(a) for a in args] + ["-q"])
     if code != 0:
         raise SystemExit(f"usdface {' '.join(map(str, args))} failed ({code})")
 
@@ -121,7 +121,7 @@ class Rig:
         self.shapes = fit.n_shapes if fit is not None else 0
 
     def write(self, path, inputs, mesh_path):
-        from usdface.skel import build_rig
+        from usdface.skel import SkinFit, build_rig
         from usdface.usd.skel_layer import write_skel_layer
 
         d = inputs.effective
@@ -131,9 +131,9 @@ class Rig:
         else:
             tr, weights, shapes, sw = d, self.weights, None, None
         rig = build_rig(inputs.binding.names, inputs.bound_points, tr)
-        write_skel_layer(path, rig, weights, mesh_path=mesh_path, units=inputs.mesh.units, rate=inputs.capture.rate,
+        write_skel_layer(path, rig, SkinFit(weights, tr, shapes, sw), mesh_path=mesh_path, rate=inputs.capture.rate,
                          start=inputs.capture.start_frame, prov={"processor": "benchmark"},
-                         head_motion=inputs.head_motion, shapes=shapes, shape_weights=sw)
+                         head_motion=inputs.head_motion)
 
 
 def usdskel_error(rig, inputs, mesh_path, cache, tmp: Path, frames=None):
@@ -157,9 +157,12 @@ def main(argv=None) -> int:
     ap.add_argument("--takes", nargs="+", default=["Jaw", "Eyebrows", "Nose"])
     args = ap.parse_args(argv)
     from usdface import __version__
-    from usdface.processors.skel import fit_dcc, load_skel_inputs
-    from usdface.skel import full_weights, prune_weights
+    from usdface.skel import fit_dcc, full_weights, prune_weights, skel_inputs
     from usdface.skel.weights import motion_gram
+    from usdface.usd.inputs import load_transfer_inputs
+
+    def load_skel_inputs(*paths):
+        return skel_inputs(*load_transfer_inputs(*paths))
 
     tmpdir = tempfile.TemporaryDirectory()
     work = args.work or Path(tmpdir.name)
@@ -255,7 +258,7 @@ def placement_check(inputs, fit, mesh_path, tmp: Path) -> dict:
     """The default rig's face at the origin, y = 170 cm and y = 10 m, with the writer's float32 weights
     and with plain float32 rounding of the weights (what the rows-sum-to-one correction is for)."""
     import usdface.usd.skel_layer as skel_layer
-    from usdface.skel import build_rig
+    from usdface.skel import SkinFit, build_rig
     from usdface.usd.mesh_layer import read_mesh_layer, write_mesh_layer
     from usdface.usd.skel_layer import skinned_points, write_skel_layer
 
@@ -275,8 +278,8 @@ def placement_check(inputs, fit, mesh_path, tmp: Path) -> dict:
         if plain:
             skel_layer.float32_weights = lambda w: np.ascontiguousarray(w, dtype=np.float32)
         try:
-            write_skel_layer(sp, rig, fit.weights, mesh_path=mp, units="cm", rate=60.0, start=0.0, prov={"p": "b"},
-                             shapes=fit.shapes, shape_weights=fit.shape_weights(d))
+            skin = SkinFit(fit.weights, fit.joint_translations(d), fit.shapes, fit.shape_weights(d))
+            write_skel_layer(sp, rig, skin, mesh_path=mp, rate=60.0, start=0.0, prov={"p": "b"})
         finally:
             skel_layer.float32_weights = saved
         return skinned_points(sp)[1] - shift

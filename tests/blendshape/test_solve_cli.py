@@ -173,23 +173,35 @@ def test_apply_curves_to_the_stylized_face(jaw, tmp_path, sample_assets):
     assert np.isfinite(pts).all()
 
 
-def test_solve_shot_on_run_layers(tmp_path, sample_assets):
-    from usdface.processors.bind import bind
-    from usdface.processors.import_capture import import_capture
-    from usdface.processors.import_mesh import import_mesh
-    from usdface.processors.solve import solve_shot
+def test_blendshapes_step_on_run_layers(tmp_path, sample_assets):
+    """`run`'s blend-shape step (the registry's `blendshapes`) on the layers run writes; the shot
+    stage run composes from its summary plays the curves as the curves layer alone does."""
+    from usdface import api, registry
+    from usdface.options import CaptureOptions, SolveOptions
+    from usdface.usd.analysis_layer import write_shot_stage
     from usdface.usd.blendshape_layer import evaluate_curves_layer
 
-    import_mesh(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj", tmp_path / "mesh.usdc")
-    import_capture(sample_assets / "capture" / "JawMoCap.ma", tmp_path / "capture.usdc", stabilize="auto",
-                   trim=(300, 500))
-    bind(tmp_path / "mesh.usdc", tmp_path / "capture.usdc", tmp_path / "binding.usda",
-         layout=sample_assets / "layouts" / "makehuman_hm08_face.layout.json")
-    s = solve_shot(tmp_path / "mesh.usdc", tmp_path / "capture.usdc", tmp_path / "binding.usda", tmp_path,
-                   shapes=sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz")
-    for name in ("blendshapes.usdc", "shot_blendshapes.usda", "curves.csv"):
+    api.import_mesh(str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj"), output=tmp_path / "mesh.usdc")
+    api.import_capture(str(sample_assets / "capture" / "JawMoCap.ma"),
+                       CaptureOptions(stabilize="auto", trim=(300, 500)), output=tmp_path / "capture.usdc")
+    api.bind(tmp_path / "mesh.usdc", tmp_path / "capture.usdc",
+             {"layout": str(sample_assets / "layouts" / "makehuman_hm08_face.layout.json")},
+             output=tmp_path / "binding.usda")
+    r = registry.call("blendshapes", tmp_path / "mesh.usdc", tmp_path / "capture.usdc", tmp_path / "binding.usda",
+                      options=SolveOptions(shapes=str(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz")),
+                      output=tmp_path / "blendshapes.usdc", csv=tmp_path / "curves.csv")
+    for name in ("blendshapes.usdc", "curves.csv"):
         assert (tmp_path / name).is_file()
+    assert not (tmp_path / "curves_livelink.csv").exists()
+    assert r.layers == {"output": str(tmp_path / "blendshapes.usdc")}
+    assert r.files == {"csv": str(tmp_path / "curves.csv")}
+    s = r.summary
     assert s["frames"] == 200 and s["residualMean"] < s["stillResidualMean"]
+    assert s["shotStage"] == {"rate": 60.0, "start": 0, "end": 199, "units": "cm", "stabilizedCapture": False}
+    st = s["shotStage"]
+    write_shot_stage(tmp_path / "shot_blendshapes.usda",
+                     layers=[tmp_path / "blendshapes.usdc", tmp_path / "binding.usda"], rate=st["rate"],
+                     start=st["start"], end=st["end"], units=st["units"], stabilized_capture=st["stabilizedCapture"])
     _, shot = evaluate_curves_layer(tmp_path / "shot_blendshapes.usda", times=[100.0])
     _, alone = evaluate_curves_layer(tmp_path / "blendshapes.usdc", times=[100.0])
     assert np.allclose(shot, alone)
@@ -237,17 +249,22 @@ def test_corrective_points_shot_hits_the_markers(tmp_path, sample_assets):
     from usdface.io.meshes import read_mesh
     from usdface.mesh.binding import bind_layout
     from usdface.mesh.layout import read_layout
-    from usdface.processors.import_capture import condition_capture, load_capture
-    from usdface.processors.solve import solve
+    from usdface import api
+    from usdface.capture.conditioning import Conditioning, condition_capture
+    from usdface.options import SolveOptions
+    from usdface.usd.inputs import load_capture
 
     layout = sample_assets / "layouts" / "makehuman_hm08_face.layout.json"
-    s = solve(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj", sample_assets / "capture" / "NoseMoCap.ma",
-              tmp_path / "nose.usdc", shapes=sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz",
-              layout=layout, corrective=True, trim=(400, 560))
+    r = api.solve(str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj"),
+                  str(sample_assets / "capture" / "NoseMoCap.ma"),
+                  options=SolveOptions(shapes=str(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz"),
+                                       layout=str(layout), trim=(400, 560)),
+                  output=tmp_path / "nose.usdc", corrective=True)
     shot = tmp_path / "nose_corrective.usdc"
-    assert s["corrective"]["output"] == str(shot)
-    cap, _ = condition_capture(load_capture(sample_assets / "capture" / "NoseMoCap.ma"), trim=(400, 560),
-                               stabilize="auto")
+    assert r.summary["corrective"]["output"] == str(shot)
+    assert r.layers == {"output": str(tmp_path / "nose.usdc"), "corrective": str(shot)}
+    cap, _ = condition_capture(load_capture(sample_assets / "capture" / "NoseMoCap.ma"),
+                               Conditioning(trim=(400, 560), stabilize="auto"))
     mesh = read_mesh(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")
     binding = bind_layout(mesh, read_layout(layout), cap)
     d = marker_displacements(cap, binding.names, binding.displacement_transform())
@@ -260,3 +277,38 @@ def test_corrective_points_shot_hits_the_markers(tmp_path, sample_assets):
         hit = binding.surface_points(p) - binding.surface_points(mesh.points)
         worst = max(worst, float(np.abs(hit - d[f]).max()))
     assert worst < 1e-3  # the residual the rig leaves (up to ~0.5 cm) is transferred: markers hit
+
+
+def test_solve_in_memory_writes_no_file(tmp_path, sample_assets, monkeypatch):
+    """api.solve without an output path authors the curves into a new in-memory layer (or ``into``);
+    nothing touches the disk (the working folder is read-only), and the layer holds the curves the
+    files would."""
+    from pxr import Sdf
+
+    from usdface import api
+    from usdface.errors import OptionError
+    from usdface.options import SolveOptions
+    from usdface.usd.blendshape_layer import read_curves_layer
+
+    options = SolveOptions(shapes=str(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz"),
+                           layout=str(sample_assets / "layouts" / "makehuman_hm08_face.layout.json"), trim=(0, 120))
+    mesh = str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")
+    take = str(sample_assets / "capture" / "NoseMoCap.ma")
+    work = tmp_path / "ro"
+    work.mkdir()
+    work.chmod(0o555)
+    monkeypatch.chdir(work)
+    try:
+        result = api.solve(mesh, take, options=options)
+        into = Sdf.Layer.CreateAnonymous("curves.usda")
+        again = api.solve(mesh, take, options=options, into=into)
+        with pytest.raises(OptionError, match="--corrective: name the points shot"):
+            api.solve(mesh, take, options=options, corrective=True)
+    finally:
+        work.chmod(0o755)
+    assert list(work.iterdir()) == []
+    assert isinstance(result.layer, Sdf.Layer) and result.layer.anonymous and again.layer is into
+    curves = read_curves_layer(result.layer)
+    assert curves["weights"].shape == (120, 52) and curves["rate"] == 60.0
+    assert np.array_equal(read_curves_layer(into)["weights"], curves["weights"])
+    assert result.summary["output"].startswith("in-memory layer") and result.summary["residualMean"] > 0

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from usdface.blendshape.mirror import find_mirror_pairs
-from usdface.blendshape.solver import CurveSolver, neumann_laplacian, objective, solve_reference
+from usdface.blendshape.solver import CurveSolver, SolverParameters, neumann_laplacian, objective, solve_reference
 from usdface.blendshape.synthetic import observable_shapes, random_weight_curves, synthetic_take
 from usdface.blendshape.take import DEFAULT_EXCLUDE, resolve_exclude
 
@@ -42,7 +42,7 @@ def test_dct_diagonalises_the_neumann_laplacian():
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 def test_sparse_pass_reaches_the_reference_minimiser(small, reference, backend):
     basis, take, pairs, pidx = small
-    solver = CurveSolver(basis, names=SUBSET, symmetric_pairs=pairs, refit=False)
+    solver = CurveSolver(basis, names=SUBSET, symmetric_pairs=pairs, params=SolverParameters(refit=False))
     sol = solver.solve(take.displacements, rate=60.0, tolerance=1e-5, max_iterations=20000, backend=backend)
     ref = reference
     kw = dict(rate=60.0, pair_indices=pidx)
@@ -128,7 +128,7 @@ def test_bad_options_and_shapes(makehuman):
     from usdface.errors import InputError, OptionError
 
     with pytest.raises(OptionError, match="sparsity"):
-        CurveSolver(makehuman["basis"], sparsity=-1)
+        CurveSolver(makehuman["basis"], params=SolverParameters(sparsity=-1))
     with pytest.raises(InputError, match="nope"):
         CurveSolver(makehuman["basis"], names=makehuman["rig"].names, symmetric_pairs=[("nope", "jawOpen")])
     with pytest.raises(InputError, match="shape"):

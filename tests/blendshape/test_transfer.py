@@ -76,7 +76,7 @@ def test_transfer_errors(tmp_path, sample_assets, capsys):
 
 def test_the_packaged_generic_rig_is_the_sample_rig(sample_assets):
     """The default generic shipped in the package is the sample MakeHuman rig, byte for byte."""
-    from usdface.processors.shapes import default_generic
+    from usdface.usd.rig_inputs import default_generic
 
     d = default_generic()
     assert d["shapes"].read_bytes() == (sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz").read_bytes()

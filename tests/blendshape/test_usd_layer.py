@@ -4,8 +4,8 @@ import pytest
 from pxr import Gf, Usd, UsdGeom, UsdSkel, Vt
 
 from usdface.errors import FormatError, MeshError
-from usdface.usd.blendshape_layer import (evaluate_curves_layer, head_motion_of_layer, read_blendshape_rig,
-                                          read_curves_layer, write_curves_layer)
+from usdface.usd.blendshape_layer import (CurveSamples, evaluate_curves_layer, head_motion_of_layer,
+                                          read_blendshape_rig, read_curves_layer, write_curves_layer)
 from usdface.usd.layers import provenance
 
 
@@ -24,9 +24,9 @@ def test_curves_layer_poses_like_the_rig(makehuman, tmp_path):
     w = rng.random((6, 52)) * 0.7
     hm = _head(6)
     path = tmp_path / "curves.usdc"
-    write_curves_layer(path, mesh=rig.mesh, regions=makehuman["regions"], names=rig.names, deltas=rig.deltas,
-                       times=np.arange(6), weights=w, rate=30.0, start=0, end=5, head_motion=hm,
-                       head_times=np.arange(6), prov=provenance("solve", options={}, inputs={}))
+    write_curves_layer(path, rig, makehuman["regions"],
+                       CurveSamples(times=np.arange(6), weights=w, rate=30.0, start=0, end=5, head_motion=hm,
+                                    head_times=np.arange(6)), prov=provenance("solve", options={}, inputs={}))
     stage = Usd.Stage.Open(str(path))
     assert stage.GetDefaultPrim().GetPath() == "/Face" and stage.GetDefaultPrim().IsA(UsdSkel.Root)
     assert stage.GetTimeCodesPerSecond() == 30.0 and stage.GetFramesPerSecond() == 30.0

@@ -4,12 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import usdface.cli as cli_module
+from usdface.cli import main
 
 
 def run(*args) -> int:
-    """`usdface ARGS...` in-process."""
-    return cli_module.main([str(a) for a in args])
+    """`usdface ARGS...` in-process; returns the exit code."""
+    return main([str(a) for a in args])
 
 
 @pytest.fixture(scope="session")

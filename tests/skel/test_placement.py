@@ -17,9 +17,10 @@ TOL_CM = 1e-3
 
 @pytest.fixture(scope="module")
 def jaw_rig(jaw):
-    from usdface.processors.skel import fit_dcc, load_skel_inputs
+    from usdface.skel import fit_dcc, skel_inputs
+    from usdface.usd.inputs import load_transfer_inputs
 
-    inputs = load_skel_inputs(jaw["mesh"], jaw["capture"], jaw["binding"], jaw["analysis"])
+    inputs = skel_inputs(*load_transfer_inputs(jaw["mesh"], jaw["capture"], jaw["binding"], jaw["analysis"]))
     fit = fit_dcc(inputs, 8)
     # the neutral frame, the largest Chin displacement and a spread of others
     chin = inputs.binding.names.index("Chin")
@@ -30,7 +31,7 @@ def jaw_rig(jaw):
 
 def _skin_at(tmp_path, inputs, fit, frames, offset):
     """Write the face moved by ``offset`` (cm) and return UsdSkel's deformed points moved back by it."""
-    from usdface.skel import build_rig
+    from usdface.skel import SkinFit, build_rig
     from usdface.usd.mesh_layer import read_mesh_layer, write_mesh_layer
     from usdface.usd.skel_layer import skinned_points, write_skel_layer
 
@@ -43,8 +44,8 @@ def _skin_at(tmp_path, inputs, fit, frames, offset):
     d = inputs.effective[frames]
     rig = build_rig(inputs.binding.names, inputs.bound_points + shift, fit.joint_translations(d))
     skel_path = tmp_path / f"skel_{tag}.usdc"
-    write_skel_layer(skel_path, rig, fit.weights, mesh_path=mesh_path, units="cm", rate=60.0, start=0.0,
-                     prov={"processor": "test"}, shapes=fit.shapes, shape_weights=fit.shape_weights(d))
+    skin = SkinFit(fit.weights, fit.joint_translations(d), fit.shapes, fit.shape_weights(d))
+    write_skel_layer(skel_path, rig, skin, mesh_path=mesh_path, rate=60.0, start=0.0, prov={"processor": "test"})
     _, pts = skinned_points(skel_path)
     return pts - shift
 

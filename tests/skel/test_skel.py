@@ -183,7 +183,8 @@ def test_missing_markers_joints_follow_the_resolved_surface(skel_gaps, jaw, poin
     """On frames with missing markers the joints of those markers move with the surface the valid
     markers re-solve (the effective displacement at their bound point); the rig then reproduces
     the re-solved point cache with the same accuracy as any frame (reported apart)."""
-    from usdface.processors.skel import load_skel_inputs
+    from usdface.skel import fit_dcc, skel_inputs
+    from usdface.usd.inputs import load_transfer_inputs
     from usdface.usd.layers import open_stage
     from usdface.usd.mesh_layer import read_binding
 
@@ -194,7 +195,7 @@ def test_missing_markers_joints_follow_the_resolved_surface(skel_gaps, jaw, poin
     b = read_binding(open_stage(jaw["binding"]))
     chin = b.names.index("Chin")
     tri, bary = b.triangle_vertices[chin], b.barycentrics[chin]
-    inputs = load_skel_inputs(jaw["mesh"], jaw["gaps"], jaw["binding"], jaw["analysis"])
+    inputs = skel_inputs(*load_transfer_inputs(jaw["mesh"], jaw["gaps"], jaw["binding"], jaw["analysis"]))
     rest = inputs.mesh.points
     for f in (400, 415, 429):
         # Chin is missing: its effective displacement is the re-solved surface's at its bound point
@@ -212,8 +213,6 @@ def test_missing_markers_joints_follow_the_resolved_surface(skel_gaps, jaw, poin
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/Face/Skeleton/Anim"))
     skel = UsdSkel.Skeleton(stage.GetPrimAtPath("/Face/Skeleton"))
     rest_local = np.array([np.array(m)[3, :3] for m in skel.GetRestTransformsAttr().Get()])
-    from usdface.processors.skel import fit_dcc
-
     fitted = fit_dcc(inputs, 8)
     tau = fitted.joint_translations(inputs.effective[[415]])[0]
     written = np.asarray(anim.GetTranslationsAttr().Get(415), dtype=np.float64)[1:] - rest_local[1:]
@@ -249,6 +248,32 @@ def test_deprecated_negative_weights_maps_or_fails_clearly(ucli, jaw, capsys, ca
     err = capsys.readouterr().err
     assert code == 2 and "--negative-weights" in err and "--skin-weights" in err
     assert not never.exists()
+    # --skin-weights given as its default value still contradicts the alias (the default is told apart)
+    code = ucli("skel", "--mesh", jaw["mesh"], "--capture", jaw["capture"], "--binding", jaw["binding"],
+                "--analysis", jaw["analysis"], "--negative-weights", "keep", "--skin-weights", "dcc", "-o", never)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err[-1].endswith("--negative-weights keep (deprecated; means --skin-weights exact) "
+                                          "contradicts --skin-weights dcc: give --skin-weights only")
+    assert not never.exists()
+
+
+def test_the_deprecated_alias_lives_in_the_options(caplog):
+    """SkelLayerOptions maps --negative-weights once, whatever calls it (command line, API, batch)."""
+    from usdface.errors import OptionError
+    from usdface.options import SkelLayerOptions
+
+    assert SkelLayerOptions().skin_weights == "dcc"
+    mapped = SkelLayerOptions(negative_weights="keep")
+    assert (mapped.skin_weights, mapped.negative_weights) == ("exact", None)
+    assert "--negative-weights keep is deprecated: use --skin-weights exact" in caplog.text
+    assert SkelLayerOptions(negative_weights="clamp", skin_weights="dcc").skin_weights == "dcc"
+    assert SkelLayerOptions().replace(negative_weights="keep").skin_weights == "exact"  # the default stays a default
+    with pytest.raises(OptionError, match="contradicts --skin-weights dcc"):
+        SkelLayerOptions(negative_weights="keep", skin_weights="dcc")
+    with pytest.raises(OptionError, match="contradicts --skin-weights exact"):
+        mapped.replace(negative_weights="clamp")
+    assert mapped.skin_parameters().mode == "exact" and mapped.skin_parameters().corrective_shapes == 0
+    assert SkelLayerOptions(max_influences="all").skin_parameters().max_influences is None
 
 
 @pytest.mark.parametrize("args, option", [(("--max-influences", "0"), "--max-influences"),
@@ -265,13 +290,14 @@ def test_bad_options_fail_cleanly_and_write_nothing(ucli, jaw, capsys, args, opt
 
 
 def test_max_influences_in_python_api_names_the_option(jaw):
+    from usdface import api
     from usdface.errors import OptionError
-    from usdface.processors.skel import skel
 
     for bad in (0, -1, 2.5, True):
         with pytest.raises(OptionError, match="--max-influences"):
-            skel(jaw["mesh"], jaw["capture"], jaw["binding"], jaw["analysis"], jaw["dir"] / "never.usdc",
-                 max_influences=bad)
+            api.skel(jaw["mesh"], jaw["capture"], jaw["binding"], jaw["analysis"], options={"max_influences": bad},
+                     output=jaw["dir"] / "never.usdc")
+    assert not (jaw["dir"] / "never.usdc").exists()
 
 
 def test_layer_passes_usdface_check_and_usdskel_validation(skel_default, ucli):

@@ -60,25 +60,15 @@ import numpy as np
 
 from ..errors import InputError, OptionError, list_names
 from . import _kernels as kn
+from .parameters import (DEFAULT_MAX_ITERATIONS, DEFAULT_SMOOTHING_HZ, DEFAULT_SPARSITY,  # noqa: F401 (re-exported)
+                         DEFAULT_SUPPORT_DILATION_S, DEFAULT_SUPPORT_THRESHOLD, DEFAULT_SYMMETRY, DEFAULT_TOLERANCE,
+                         SolverParameters)
 
-__all__ = ["CurveSolver", "CurveSolution", "solve_curves", "solve_reference", "objective", "neumann_laplacian",
-           "DEFAULT_SMOOTHING_HZ", "DEFAULT_SPARSITY", "DEFAULT_SYMMETRY", "DEFAULT_TOLERANCE"]
+__all__ = ["CurveSolver", "CurveSolution", "SolverParameters", "solve_curves", "solve_reference", "objective",
+           "neumann_laplacian", "DEFAULT_SMOOTHING_HZ", "DEFAULT_SPARSITY", "DEFAULT_SYMMETRY", "DEFAULT_TOLERANCE"]
 
-#: temporal smoothness cut-off (Hz): a shape fitted alone is low-passed here
-DEFAULT_SMOOTHING_HZ = 6.0
-#: L1 weight beta (cm^2 per unit weight)
-DEFAULT_SPARSITY = 0.01
-#: left/right prior weight gamma (dimensionless: a fraction of each pair's own data curvature)
-DEFAULT_SYMMETRY = 0.05
-#: ADMM stopping tolerance on the RMS primal and dual residuals (cm of marker motion per shape)
-DEFAULT_TOLERANCE = 2e-3
 #: with a refit, the sparse pass stops at this multiple of the tolerance (it only picks the support)
 SUPPORT_TOLERANCE_FACTOR = 4.0
-#: refit: entries above this weight after the sparse pass form the support
-DEFAULT_SUPPORT_THRESHOLD = 0.05
-#: refit: the support is widened by this many seconds on either side
-DEFAULT_SUPPORT_DILATION_S = 0.08
-DEFAULT_MAX_ITERATIONS = 300
 #: a shape moving no marker by more than this fraction of the largest shape's motion is unobservable
 UNOBSERVABLE_FRACTION = 1e-6
 #: a marker moved by no shape more than this fraction of the largest marker motion is "unmoved"
@@ -172,24 +162,11 @@ class CurveSolver:
     marker_names : sequence of str, length M, optional
     symmetric_pairs : sequence of (str, str) or (int, int)
         Shapes coupled by the left/right prior (:func:`usdface.blendshape.mirror.find_mirror_pairs`).
-    smoothing_hz : float or None
-        Temporal cut-off f_c (Hz); None or 0: no smoothing (frames independent).
-    sparsity : float
-        beta >= 0 (cm^2).
-    symmetry : float
-        gamma >= 0 (dimensionless, relative to each pair's data curvature).
-    rho : float
-        Initial ADMM penalty (scaled units; adapted during the solve).
     exclude : sequence of str
         Shapes held at weight 0 (e.g. gaze and tongue shapes, which skin markers do not see).
-    refit : bool
-        Second pass without the sparsity term over the support of the first (module docstring).
-    support_threshold : float
-        Weight above which an entry of the first pass is in the support.
-    support_dilation_s : float
-        Seconds the support is widened by on either side.
-    relaxation : float
-        ADMM over-relaxation in [1, 2).
+    params : SolverParameters
+        Smoothing, sparsity, symmetry, refit and the ADMM settings
+        (:class:`usdface.blendshape.parameters.SolverParameters`).
 
     Examples
     --------
@@ -197,12 +174,10 @@ class CurveSolver:
     >>> sol = solver.solve(displacements, rate=60.0)                          # doctest: +SKIP
     """
 
-    def __init__(self, basis, *, names=None, marker_names=None, symmetric_pairs=(),
-                 smoothing_hz: float | None = DEFAULT_SMOOTHING_HZ, sparsity: float = DEFAULT_SPARSITY,
-                 symmetry: float = DEFAULT_SYMMETRY, exclude=(), refit: bool = True,
-                 support_threshold: float = DEFAULT_SUPPORT_THRESHOLD,
-                 support_dilation_s: float = DEFAULT_SUPPORT_DILATION_S, rho: float = 0.1,
-                 relaxation: float = 1.8) -> None:
+    def __init__(self, basis, *, names=None, marker_names=None, symmetric_pairs=(), exclude=(),
+                 params: SolverParameters = SolverParameters()) -> None:
+        smoothing_hz, sparsity, symmetry = params.smoothing_hz, params.sparsity, params.symmetry
+        rho, relaxation = params.rho, params.relaxation
         b = np.asarray(basis, dtype=np.float64)
         if b.ndim != 3 or b.shape[2] != 3 or b.shape[0] == 0 or b.shape[1] == 0:
             raise InputError(f"marker basis must have shape (M>0, K>0, 3); got {b.shape}")
@@ -229,10 +204,11 @@ class CurveSolver:
         self.sparsity = float(sparsity)
         self.symmetry = float(symmetry)
         self.rho0 = float(rho)
-        self.refit = bool(refit)
-        self.support_threshold = float(support_threshold)
-        self.support_dilation_s = float(support_dilation_s)
+        self.refit = bool(params.refit)
+        self.support_threshold = float(params.support_threshold)
+        self.support_dilation_s = float(params.support_dilation_s)
         self.relaxation = float(relaxation)
+        self.params = params
         norms = np.sqrt((b ** 2).sum(axis=(0, 2)))
         top = float(norms.max())
         self.norms = norms
@@ -286,8 +262,8 @@ class CurveSolver:
         return len(self.marker_names)
 
     # -- the solve -------------------------------------------------------------------------------
-    def solve(self, displacements, *, rate: float, valid=None, max_iterations: int = DEFAULT_MAX_ITERATIONS,
-              tolerance: float = DEFAULT_TOLERANCE, backend: str = "auto", support=None) -> CurveSolution:
+    def solve(self, displacements, *, rate: float, valid=None, max_iterations: int | None = None,
+              tolerance: float | None = None, backend: str = "auto", support=None) -> CurveSolution:
         """Solve a whole take.
 
         Parameters
@@ -298,9 +274,10 @@ class CurveSolver:
             Frames per second (sets the smoothness weight).
         valid : array_like (F, M) bool, optional
             Default: where ``displacements`` is finite. Samples marked invalid are ignored.
-        max_iterations : int
-        tolerance : float
+        max_iterations : int, optional
+        tolerance : float, optional
             Stop when the RMS primal and dual residuals fall below it (scaled units, cm).
+            Default (None): the solver's parameters.
         backend : {"auto", "numba", "numpy"}
         support : array_like (F, K) bool, optional
             Skip the sparse pass and solve only the refit over this support (for tests and for
@@ -313,6 +290,8 @@ class CurveSolver:
         from threadpoolctl import threadpool_limits
 
         t0 = time.perf_counter()
+        max_iterations = self.params.max_iterations if max_iterations is None else max_iterations
+        tolerance = self.params.tolerance if tolerance is None else tolerance
         d = np.asarray(displacements, dtype=np.float64)
         if d.ndim != 3 or d.shape[1:] != (self.n_markers, 3):
             raise InputError(f"displacements must have shape (F, M={self.n_markers}, 3); got {d.shape}")
@@ -574,9 +553,8 @@ def solve_reference(basis, displacements, *, rate: float, valid=None, smoothing_
 
 
 def solve_curves(basis, displacements, *, rate: float, names=None, marker_names=None, symmetric_pairs=(),
-                 valid=None, **options) -> CurveSolution:
-    """One call: :class:`CurveSolver` built and solved (options of both)."""
-    solve_keys = ("max_iterations", "tolerance", "backend")
-    solve_opts = {k: options.pop(k) for k in solve_keys if k in options}
+                 valid=None, exclude=(), params: SolverParameters = SolverParameters(),
+                 backend: str = "auto") -> CurveSolution:
+    """One call: :class:`CurveSolver` built and solved."""
     return CurveSolver(basis, names=names, marker_names=marker_names, symmetric_pairs=symmetric_pairs,
-                       **options).solve(displacements, rate=rate, valid=valid, **solve_opts)
+                       exclude=exclude, params=params).solve(displacements, rate=rate, valid=valid, backend=backend)

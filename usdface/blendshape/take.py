@@ -16,19 +16,14 @@ import numpy as np
 
 from ..errors import InputError, OptionError, list_names
 from .mirror import find_mirror_pairs
+from .parameters import DEFAULT_EXCLUDE, DELIVERY_RATES, TakeParameters  # noqa: F401 (re-exported)
 from .rig import BlendShapeRig, marker_basis
-from .solver import (DEFAULT_MAX_ITERATIONS, DEFAULT_SMOOTHING_HZ, DEFAULT_SPARSITY, DEFAULT_SYMMETRY,
-                     DEFAULT_TOLERANCE, CurveSolution, CurveSolver)
+from .solver import CurveSolution, CurveSolver
 
 log = logging.getLogger("usdface")
 
-__all__ = ["TakeSolution", "DeliverableCurves", "solve_take", "deliverable_curves", "resolve_exclude",
-           "DEFAULT_EXCLUDE", "DELIVERY_RATES"]
-
-#: shapes held at 0 by default: skin markers see neither gaze nor the tongue
-DEFAULT_EXCLUDE = ("eyeLook*", "tongueOut")
-#: the delivery rates ``--fps`` offers (any positive rate is accepted by the functions)
-DELIVERY_RATES = (24.0, 25.0, 30.0)
+__all__ = ["TakeSolution", "DeliverableCurves", "TakeParameters", "solve_take", "deliverable_curves",
+           "resolve_exclude", "DEFAULT_EXCLUDE", "DELIVERY_RATES"]
 
 
 @dataclass
@@ -74,20 +69,14 @@ def resolve_exclude(patterns, names) -> list[str]:
 
 
 def mesh_head_motion(capture, binding) -> np.ndarray | None:
-    """The capture's removed head motion in mesh space relative to the neutral frame (D1), or None."""
-    from ..skel.joints import head_motion_in_mesh_space
+    """The capture's removed head motion in mesh space relative to the neutral frame (D1), or None
+    (:func:`usdface.skel.joints.capture_head_motion`: the skeleton carries the same one)."""
+    from ..skel.joints import capture_head_motion
 
-    if capture.head_motion is None:
-        return None
-    n = capture.neutral_frame
-    rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.head_motion[n]), capture.head_motion)
-    return head_motion_in_mesh_space(rel, binding.capture_to_mesh)
+    return capture_head_motion(capture, binding.capture_to_mesh)
 
 
-def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | None = DEFAULT_SMOOTHING_HZ,
-               sparsity: float = DEFAULT_SPARSITY, symmetry: float = DEFAULT_SYMMETRY, exclude=DEFAULT_EXCLUDE,
-               refit: bool = True, head_motion: bool = True, max_iterations: int = DEFAULT_MAX_ITERATIONS,
-               tolerance: float = DEFAULT_TOLERANCE) -> TakeSolution:
+def solve_take(rig: BlendShapeRig, capture, binding, params: TakeParameters = TakeParameters()) -> TakeSolution:
     """Solve a conditioned capture on a rig through a binding.
 
     Parameters
@@ -97,13 +86,11 @@ def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | No
     capture : usdface.model.capture.Capture
         Conditioned (stabilised unless the caller chose not to).
     binding : usdface.model.mesh.Binding
-    smoothing_hz, sparsity, symmetry, refit, max_iterations, tolerance
-        The solver's options (:class:`usdface.blendshape.solver.CurveSolver`); sparsity and
-        symmetry are in cm^2 / dimensionless whatever the mesh units (converted here).
-    exclude : sequence of glob patterns
-        Shapes held at 0 (default :data:`DEFAULT_EXCLUDE`); ``()`` or ``"none"`` solves every shape.
-    head_motion : bool
-        Keep the capture's head motion for the outputs (D1); False drops it.
+    params : TakeParameters
+        The solver's settings (:class:`usdface.blendshape.parameters.SolverParameters`; sparsity
+        and symmetry are in cm^2 / dimensionless whatever the mesh units: converted here), the
+        shapes held at 0 (glob patterns; default :data:`DEFAULT_EXCLUDE`, ``()`` or ``"none"``
+        solves every shape) and whether the capture's head motion is kept for the outputs (D1).
 
     Returns
     -------
@@ -126,10 +113,9 @@ def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | No
     basis = marker_basis(rig, binding)
     to_cm = scale_between(rig.units, "cm") if rig.units else 1.0
     mirror = find_mirror_pairs(rig)
-    excluded = resolve_exclude(exclude, rig.names)
+    excluded = resolve_exclude(params.exclude, rig.names)
     solver = CurveSolver(basis * to_cm, names=rig.names, marker_names=binding.names,
-                         symmetric_pairs=mirror.symmetric_pairs, smoothing_hz=smoothing_hz, sparsity=sparsity,
-                         symmetry=symmetry, exclude=excluded, refit=refit)
+                         symmetric_pairs=mirror.symmetric_pairs, exclude=excluded, params=params.solver)
     if solver.unmoved_markers:
         msg = (f"marker(s) {list_names(solver.unmoved_markers)} moved by no shape of the rig: their motion cannot be "
                "explained (it stays in the residual; the corrective transfers it)")
@@ -143,16 +129,17 @@ def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | No
     valid = np.isfinite(disp).all(axis=2)
     if not valid.any():
         raise InputError(f"capture {capture.source}: no valid marker sample to solve from")
-    sol = solver.solve(disp * to_cm, rate=capture.rate, max_iterations=max_iterations, tolerance=tolerance)
+    sol = solver.solve(disp * to_cm, rate=capture.rate)
     sol.residual = sol.residual / to_cm  # back to mesh units
     sol.still_residual = sol.still_residual / to_cm
     sol.marker_rms = sol.marker_rms / to_cm
     if not sol.converged:
-        msg = (f"the solver stopped after {sol.iterations} iterations before reaching tolerance {tolerance:g} "
+        msg = (f"the solver stopped after {sol.iterations} iterations before reaching tolerance "
+               f"{params.solver.tolerance:g} "
                f"(primal {sol.primal:.2g}, dual {sol.dual:.2g}); raise --max-iterations for tighter curves")
         warnings.append(msg)
         log.warning("%s", msg)
-    hm = mesh_head_motion(capture, binding) if head_motion else None
+    hm = mesh_head_motion(capture, binding) if params.head_motion else None
     return TakeSolution(sol, float(capture.rate), int(capture.start_frame), hm, disp, basis, mirror.summary(),
                         warnings)
 

@@ -36,11 +36,12 @@ import scipy.sparse as sp
 
 from ..errors import MeshError, OptionError
 from ..model.mesh import FaceMesh
+from .parameters import RIG_TRANSFER_METHODS
 from .rig import BlendShapeRig
 
 __all__ = ["TRANSFER_METHODS", "RigTransfer", "transfer_rig", "shapes_on_registration", "copy_through_topology"]
 
-TRANSFER_METHODS = ("deformation", "displacement")
+TRANSFER_METHODS = RIG_TRANSFER_METHODS
 #: weight of the pull toward the displacement transfer in the deformation solve (per unit area,
 #: relative to the gradient term)
 ANCHOR_WEIGHT = 1e-3

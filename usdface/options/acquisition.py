@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..blendshape.parameters import DEFAULT_RIG_TRANSFER, RIG_TRANSFER_METHODS
 from ..scan.methods import STEREO_METHODS, SURFACES
 from .fields import Options, option
 from .values import boolean, integer, pair, path, positive_float, positive_int
@@ -108,8 +109,7 @@ class ShapesTransferOptions(Options):
                                         group="registration", help="the generic neutral's shapes")
     generic_landmarks: str | None = option(None, flag="--generic-landmarks", coerce=path, group="registration",
                                            help="the generic's landmarks (marker layout)")
-    method: str = option("displacement", flag="--method", choices=("displacement", "deformation"),
-                         group="registration",
+    method: str = option(DEFAULT_RIG_TRANSFER, flag="--method", choices=RIG_TRANSFER_METHODS, group="registration",
                          help="offsets rotated and scaled with the face (default), or deformation transfer "
                               "(Sumner & Popovic 2004) following the target's local shape")
     border: bool = option(True, flag="--no-border", coerce=boolean, group="registration",

@@ -4,6 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..blendshape.parameters import (DEFAULT_EXCLUDE, DEFAULT_MAX_ITERATIONS, DEFAULT_SMOOTHING_HZ, DEFAULT_SPARSITY,
+                                     DEFAULT_SYMMETRY, DEFAULT_TOLERANCE)
 from ..errors import OptionError
 from .binding import BindOptions
 from .capture import UNITS, CaptureOptions, stabilize_value
@@ -32,22 +34,22 @@ class BlendshapeOptions(Options):
                                 help="the rig's shapes for a neutral mesh: a folder of <shape>.obj, an .npz (names, "
                                      "deltas[, neutral]) or a USD rig (not needed when the mesh is a USD mesh with "
                                      "UsdSkel blend shapes)")
-    smoothing: float = option(6.0, flag="--smoothing", coerce=nonnegative_float, metavar="HZ",
+    smoothing: float = option(DEFAULT_SMOOTHING_HZ, flag="--smoothing", coerce=nonnegative_float, metavar="HZ",
                               group="blend-shape solve", help="temporal smoothness cut-off in Hz (0: none)")
-    sparsity: float = option(0.01, flag="--sparsity", coerce=nonnegative_float, metavar="BETA",
+    sparsity: float = option(DEFAULT_SPARSITY, flag="--sparsity", coerce=nonnegative_float, metavar="BETA",
                              group="blend-shape solve", help="L1 weight picking few shapes per frame, cm^2")
-    symmetry: float = option(0.05, flag="--symmetry", coerce=nonnegative_float, metavar="GAMMA",
+    symmetry: float = option(DEFAULT_SYMMETRY, flag="--symmetry", coerce=nonnegative_float, metavar="GAMMA",
                              group="blend-shape solve",
                              help="left/right prior on ...Left/...Right pairs whose deltas mirror each other (0: none)")
-    exclude: tuple = option(("eyeLook*", "tongueOut"), flag="--exclude", coerce=patterns_value, metavar="PATTERNS",
+    exclude: tuple = option(DEFAULT_EXCLUDE, flag="--exclude", coerce=patterns_value, metavar="PATTERNS",
                             group="blend-shape solve",
                             help="shapes held at 0, comma-separated globs (markers see neither gaze nor tongue; "
                                  "'none' solves every shape)")
     refit: bool = option(True, flag="--no-refit", coerce=boolean, group="blend-shape solve",
                          help="skip the second pass that refits the active shapes without the sparsity shrinkage")
-    max_iterations: int = option(300, flag="--max-iterations", coerce=positive_int, metavar="N",
+    max_iterations: int = option(DEFAULT_MAX_ITERATIONS, flag="--max-iterations", coerce=positive_int, metavar="N",
                                  group="blend-shape solve", help="ADMM iterations at most")
-    tolerance: float = option(2e-3, flag="--tolerance", coerce=positive_float, metavar="CM",
+    tolerance: float = option(DEFAULT_TOLERANCE, flag="--tolerance", coerce=positive_float, metavar="CM",
                               group="blend-shape solve", help="ADMM stopping tolerance (cm)")
     fps: float | None = option(None, flag="--fps", coerce=positive_float, metavar="FPS", group="curves",
                                help="deliver the curves at this rate (24, 25, 30...) instead of the capture's")
@@ -58,11 +60,20 @@ class BlendshapeOptions(Options):
                                        help="Live Link CSV: zeros for ARKit shapes the rig lacks (default: an error "
                                             "naming them)")
 
-    def solver_kwargs(self) -> dict:
-        """The keyword arguments of the solver (usdface.processors.solve.solver_defaults)."""
-        return dict(smoothing_hz=self.smoothing or None, sparsity=self.sparsity, symmetry=self.symmetry,
-                    exclude=self.exclude, refit=self.refit, max_iterations=self.max_iterations,
-                    tolerance=self.tolerance)
+    def solver_parameters(self):
+        """The solver's settings (:class:`usdface.blendshape.parameters.SolverParameters`); a
+        smoothing of 0 is none."""
+        from ..blendshape.parameters import SolverParameters
+
+        return SolverParameters(smoothing_hz=self.smoothing or None, sparsity=self.sparsity, symmetry=self.symmetry,
+                                refit=self.refit, max_iterations=self.max_iterations, tolerance=self.tolerance)
+
+    def delivery(self):
+        """How the curves are delivered (:class:`usdface.blendshape.parameters.DeliveryParameters`)."""
+        from ..blendshape.parameters import DeliveryParameters
+
+        return DeliveryParameters(fps=self.fps, key_tolerance=self.key_tolerance,
+                                  livelink_fill_zeros=self.livelink_fill_zeros)
 
 
 @dataclass(frozen=True)
@@ -79,3 +90,10 @@ class SolveOptions(CaptureOptions, BindOptions, BlendshapeOptions):
     head_motion: bool = option(True, flag="--no-head-motion", coerce=boolean, group="deliverables",
                                help="drop the head motion removed by stabilisation (by default the curves layer "
                                     "carries it as a time-sampled transform on the face's root prim /Face)")
+
+    def take_parameters(self):
+        """How a take is solved (:class:`usdface.blendshape.parameters.TakeParameters`): the solver's
+        settings, the shapes held at 0 and whether the head motion is kept."""
+        from ..blendshape.parameters import TakeParameters
+
+        return TakeParameters(solver=self.solver_parameters(), exclude=self.exclude, head_motion=self.head_motion)

@@ -217,13 +217,15 @@ def _run_steps(job: _Job, f: dict, work: Path, cache) -> None:
                                        output=f["analysis.usdc"], cache=cache).summary
     available = {"mesh": f["mesh.usdc"], "capture": f["capture.usdc"], "binding": f["binding.usda"],
                  "analysis": f["analysis.usdc"], "rig": f["mesh.usdc"] if o.shapes else job.mesh}
+    # a video run's --auto N counted dots: the deliverables' steps never bind
+    step_options = o.replace(auto=False) if job.video else o
     for kind in o.output_kind:
         d = DELIVERABLES[kind]
         step = registry.find(d.step)
         outputs = {"output": f[d.layer], **{name: f[file] for name, file in d.files.items()}}
         outputs.update({name: f[file] for name, (flag, file) in d.optional_files.items() if getattr(o, flag, False)})
         inputs = [available[i.name] for i in step.inputs]
-        steps[d.step] = registry.call(d.step, *inputs, options=o, **outputs).summary
+        steps[d.step] = registry.call(d.step, *inputs, options=step_options, **outputs).summary
 
 
 def _commit(job: _Job, f: dict, session, prov: dict, started: float) -> str:

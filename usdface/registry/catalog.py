@@ -78,8 +78,9 @@ PROCESSORS = (
         "The blend-shape step of `usdface run --output-kind blendshapes`: the curves layer and the curves CSVs from "
         "the layers `run` wrote.",
         function="usdface.processors.blendshapes:blendshapes", options=SolveOptions, command=False,
-        inputs=(Input("mesh", "the rig: a mesh layer (with --shapes) or a USD mesh with blend shapes", flag="--mesh"),
-                _layer("capture", "capture layer (conditioned)"), _layer("binding", "binding layer")),
+        inputs=(Input("rig", "the rig: a mesh layer (with --shapes) or a USD mesh with blend shapes", flag="--rig"),
+                Input("capture", "capture layer (conditioned)", flag="--capture", default_from="rig"),
+                Input("binding", "binding layer", flag="--binding", default_from="rig")),
         outputs=(Output("output", "curves layer to write (.usdc)"),
                  Output("csv", "curves CSV to write", flags=("--csv",), kind="file"),
                  Output("livelink", "Live Link Face CSV to write", flags=("--livelink",), kind="file",

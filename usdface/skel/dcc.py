@@ -66,6 +66,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..errors import ComputeError, OptionError
+from .modes import DEFAULT_SHAPES, MAX_SHAPES
 from .simplex_lsq import simplex_lsq
 from .weights import SkinWeights, error_summary
 
@@ -75,9 +76,6 @@ MIN_WEIGHT = 1e-5
 ROM_WIDTH_FACTOR = 1.0
 #: synthetic range of motion: independent motion of each marker, relative to the shared part
 ROM_JITTER = 0.1
-#: corrective blend shapes by default (the simplex of 15 directions, five per axis); at most MAX_SHAPES
-DEFAULT_SHAPES = 16
-MAX_SHAPES = 16
 #: largest offset of a corrective shape, in median marker spacings (weights then stay well below one)
 SHAPE_OFFSET_FACTOR = 2.0
 #: alternations of the weight and joint-motion steps; stop early below this relative gain

@@ -85,6 +85,29 @@ def head_motion_in_mesh_space(head_motion: np.ndarray, capture_to_mesh: np.ndarr
     return np.einsum("ij,fjk,kl->fil", c, np.asarray(head_motion, dtype=np.float64), np.linalg.inv(c))
 
 
+def capture_head_motion(capture, capture_to_mesh: np.ndarray) -> np.ndarray | None:
+    """The head motion a stabilised capture removed, in mesh space and relative to its neutral
+    frame: ``H_mesh(f) = C H(n)^-1 H(f) C^-1`` (decision D1; identity on the neutral frame n), as
+    the skeleton and the blend-shape curves carry it on /Face.
+
+    Parameters
+    ----------
+    capture : usdface.model.capture.Capture
+        Its ``head_motion`` (F, 4, 4) (capture space, column vectors) or None, and ``neutral_frame``.
+    capture_to_mesh : ndarray, shape (4, 4)
+        The binding's capture-to-mesh similarity C.
+
+    Returns
+    -------
+    ndarray (F, 4, 4) float64, or None when the capture was not stabilised.
+    """
+    if capture.head_motion is None:
+        return None
+    n = capture.neutral_frame
+    rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.head_motion[n]), capture.head_motion)
+    return head_motion_in_mesh_space(rel, capture_to_mesh)
+
+
 @dataclass(frozen=True)
 class SkeletonRig:
     """The marker skeleton and its animation (mesh space, mesh units).

@@ -44,8 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import OptionError
+from .modes import FIT_METHODS
 
-FIT_METHODS = ("lsq", "renormalize")
 #: ridge of the least-squares refit, relative to the mean diagonal of the motion's Gram matrix
 LSQ_RIDGE = 1e-6
 

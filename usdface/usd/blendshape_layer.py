@@ -46,8 +46,8 @@ from .layers import open_stage, output_layer, set_provenance, set_stage_metadata
 from .motion import author_head_motion
 from .mesh_layer import author_mesh, author_regions, mesh_from_prim, read_regions
 
-__all__ = ["UsdRig", "read_blendshape_rig", "write_curves_layer", "evaluate_curves_layer", "read_curves_layer",
-           "write_points_layer", "head_motion_of_layer", "SKELETON_NAME", "ANIM_NAME"]
+__all__ = ["UsdRig", "CurveSamples", "read_blendshape_rig", "write_curves_layer", "evaluate_curves_layer",
+           "read_curves_layer", "write_points_layer", "head_motion_of_layer", "SKELETON_NAME", "ANIM_NAME"]
 
 SKELETON_NAME = "Skeleton"
 ANIM_NAME = "Anim"
@@ -179,23 +179,15 @@ def read_blendshape_rig(path, *, mesh_path: str | None = None, units: str | None
     return UsdRig(mesh, read_regions(prim), names, deltas, notes, str(prim.GetPath()))
 
 
-def write_curves_layer(path, *, mesh: FaceMesh, regions, names, deltas, times, weights, rate: float,
-                       start: float, end: float, head_motion=None, head_times=None, prov: dict,
-                       report: dict | None = None) -> str:
-    """Write a weight-curve layer (see the module docstring) atomically.
+@dataclass(frozen=True)
+class CurveSamples:
+    """The animation of a curves layer (:func:`write_curves_layer`).
 
-    Parameters
+    Attributes
     ----------
-    mesh : FaceMesh
-        The neutral (mesh units; its units are the layer's).
-    regions : list of Region
-        Authored as FaceRegionAPI on the mesh (previews colour them).
-    names : sequence of str, length K
-    deltas : ndarray (K, N, 3)
-    times : ndarray (T,) or None
-        Time codes of the weight samples (frame indices); None writes a rig (weights as the
-        attribute's default value, no time samples, no time range).
-    weights : ndarray (T, K), or (K,) with ``times`` None
+    times : ndarray (T,)
+        Time codes of the weight samples (frame indices).
+    weights : ndarray (T, K)
         Weights at those times, in [0, 1].
     rate : float
         timeCodesPerSecond = framesPerSecond.
@@ -203,13 +195,43 @@ def write_curves_layer(path, *, mesh: FaceMesh, regions, names, deltas, times, w
         The layer's time range.
     head_motion : ndarray (H, 4, 4), optional
         Mesh-space head motion (column vectors) at ``head_times``; None: no op on /Face.
+    head_times : ndarray (H,), optional
+    """
+
+    times: np.ndarray
+    weights: np.ndarray
+    rate: float
+    start: float
+    end: float
+    head_motion: np.ndarray | None = None
+    head_times: np.ndarray | None = None
+
+
+def write_curves_layer(path, rig, regions, samples: CurveSamples | None = None, *, prov: dict,
+                       report: dict | None = None) -> str:
+    """Write a weight-curve layer (see the module docstring) atomically.
+
+    Parameters
+    ----------
+    path : path, or (Python API) an Sdf.Layer / Usd.Stage to author into
+    rig : usdface.blendshape.rig.BlendShapeRig (or any object with ``mesh``, ``names``, ``deltas``)
+        The neutral (mesh units; its units are the layer's), the K shape names and their (K, N, 3)
+        offsets.
+    regions : list of Region
+        Authored as FaceRegionAPI on the mesh (previews colour them).
+    samples : CurveSamples, optional
+        The weight curves and the head motion; None writes a rig (weights 0 as the attribute's
+        default value, no time samples, no time range).
     prov, report : dict
         Provenance; a JSON-able report stored beside it.
     """
-    d = np.asarray(deltas, dtype=np.float64)
-    w = np.asarray(weights, dtype=np.float64)
-    static = times is None
-    t = np.zeros(0) if static else np.asarray(times, dtype=np.float64)
+    mesh, names = rig.mesh, rig.names
+    d = np.asarray(rig.deltas, dtype=np.float64)
+    static = samples is None
+    rate, start, end = (None, None, None) if static else (samples.rate, samples.start, samples.end)
+    head_motion, head_times = (None, None) if static else (samples.head_motion, samples.head_times)
+    w = np.zeros(len(names)) if static else np.asarray(samples.weights, dtype=np.float64)
+    t = np.zeros(0) if static else np.asarray(samples.times, dtype=np.float64)
     if w.shape != ((len(names),) if static else (t.size, len(names))):
         raise InputError(f"weights must have shape {(len(names),) if static else (t.size, len(names))}; got {w.shape}")
     with output_layer(path) as stage:

@@ -36,7 +36,7 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from ..errors import InputError
-from .layers import add_sublayer, open_stage, output_layer, set_provenance, set_stage_metadata
+from .layers import add_sublayer, open_stage, output_layer, set_provenance, set_stage_metadata, stage_units
 from .motion import author_head_motion
 from .mesh_layer import find_mesh
 
@@ -76,30 +76,32 @@ def shape_names(n: int) -> list[str]:
     return [f"{SHAPE_PREFIX}{s:02d}" for s in range(n)]
 
 
-def write_skel_layer(path, rig, weights, *, mesh_path, units, rate: float, start: float, prov: dict,
-                     report: dict | None = None, progress=None, head_motion=None, shapes=None,
-                     shape_weights=None) -> str:
+def write_skel_layer(path, rig, skin, *, mesh_path, rate: float, start: float, prov: dict, report: dict | None = None,
+                     progress=None, head_motion=None) -> str:
     """Write the skeleton layer (module docstring) atomically.
 
     Parameters
     ----------
+    path : path, or (Python API) an Sdf.Layer / Usd.Stage to author into
     rig : usdface.skel.SkeletonRig
         Joints and their animation (mesh space, mesh units).
-    weights : usdface.skel.SkinWeights
-        K influences per vertex, joint indices in ``rig.joint_paths`` order.
-    mesh_path : path
-        The mesh layer (sublayered by relative path).
+    skin : usdface.skel.SkinFit (or any object with ``weights``, ``shapes``, ``shape_weights``)
+        ``weights`` (:class:`usdface.skel.SkinWeights`): K influences per vertex, joint indices in
+        ``rig.joint_paths`` order; ``shapes`` (S, N, 3) or None: corrective blend-shape offsets
+        (mesh units), applied before skinning; ``shape_weights`` (F, S): their weight at every frame.
+    mesh_path : path (or layer)
+        The mesh layer (sublayered by relative path); the layer takes its units.
+    rate, start : float
+        timeCodesPerSecond = framesPerSecond, and the first frame's time code.
     report : dict, optional
         Skinning report stored as JSON in the layer's provenance (``skinning``).
     head_motion : ndarray (F, 4, 4), optional
         The head motion in mesh space (column vectors), authored on /Face as a time-sampled
         ``xformOp:transform``; None: /Face gets no transform op.
-    shapes : ndarray (S, N, 3), optional
-        Corrective blend-shape offsets (mesh units), applied before skinning.
-    shape_weights : ndarray (F, S), optional
-        Their weight at every frame.
     """
+    weights, shapes, shape_weights = skin.weights, skin.shapes, skin.shape_weights
     mesh_stage = open_stage(mesh_path, what="mesh")
+    units = stage_units(mesh_stage)
     mesh_prim = find_mesh(mesh_stage)
     mesh_path_in_stage = mesh_prim.GetPath()
     root_path = Sdf.Path(mesh_path_in_stage.GetPrefixes()[0])
