@@ -126,7 +126,7 @@ def _legacy(processor, args: list, kwargs: dict) -> tuple[list, dict]:
     DeprecationWarning, for one minor version."""
     name = processor.api_name
     notes = []
-    n_in = len(processor.inputs)
+    n_in = len(_positional(processor))
     for k, v in enumerate(args[:n_in]):
         if isinstance(v, (Options, dict)) and "options" not in kwargs:
             kwargs["options"] = v
@@ -168,11 +168,12 @@ def _call(processor, args, kwargs) -> Result:
     from .usd.layers import is_in_memory, new_anonymous_layer, target_layer
 
     args, kwargs = _legacy(processor, list(args), dict(kwargs))
-    names = [i.name for i in processor.inputs]
+    names = _positional(processor)
     if len(args) > len(names) + 1:
         raise OptionError(f"{processor.api_name}: takes {len(names)} input(s) ({', '.join(names)}) and options; "
                           f"got {len(args)} positional arguments")
     values = dict(zip(names + ["options"], args))
+    names = [i.name for i in processor.inputs]
     for k, v in kwargs.items():
         if k in values and values[k] is not None:
             raise OptionError(f"{processor.api_name}: {k} given twice")
@@ -221,14 +222,22 @@ def _call(processor, args, kwargs) -> Result:
     return result
 
 
+def _positional(processor) -> list[str]:
+    """The inputs the API takes positionally, in order (then ``options``)."""
+    return [i.name for i in processor.inputs if i.positional]
+
+
 def _signature(processor) -> inspect.Signature:
     P = inspect.Parameter
     params, seen_default = [], False
     for i in processor.inputs:
+        if not i.positional:
+            continue
         optional = not i.required or i.default_from is not None
         seen_default = seen_default or optional
         params.append(P(i.name, P.POSITIONAL_OR_KEYWORD, default=None if seen_default else P.empty))
     params.append(P("options", P.POSITIONAL_OR_KEYWORD, default=None))
+    params += [P(i.name, P.KEYWORD_ONLY, default=None) for i in processor.inputs if not i.positional]
     params += [P(o.name, P.KEYWORD_ONLY, default=None) for o in processor.outputs]
     if any(o.kind == "usd" for o in processor.outputs):
         params.append(P("into", P.KEYWORD_ONLY, default=None))

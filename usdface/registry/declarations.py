@@ -27,7 +27,9 @@ class Input:
     ``name``: the function's parameter (and the argparse destination, unless ``dest``);
     ``flag``: ``"--mesh"``, or None for a positional argument; ``kind``: one of
     :data:`INPUT_KINDS`; ``default_from``: in the Python API, an optional USD input defaults to
-    this other input (``capture`` defaults to the stage holding the mesh: one scene holds both).
+    this other input (``capture`` defaults to the stage holding the mesh: one scene holds both);
+    ``positional``: False for an input that chooses another way of working (``solve --apply``),
+    which the Python API takes by keyword only.
     """
 
     name: str
@@ -38,6 +40,7 @@ class Input:
     default_from: str | None = None
     metavar: str | None = None
     dest: str | None = None
+    positional: bool = True
 
     def __post_init__(self):
         if self.kind not in INPUT_KINDS:
