@@ -68,8 +68,17 @@ class LockedError(EnvironmentFault):
     """An output folder is being written by another usdface process (named with host and pid)."""
 
 
+def stop_signals() -> tuple:
+    """The signals that stop a usdface command and remove its partial work, as this platform has
+    them: SIGINT (Ctrl-C), SIGTERM (a farm scheduler), SIGHUP (a closed terminal or ssh session)."""
+    import signal
+
+    return tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
 class Interrupted(KeyboardInterrupt):
-    """The process was asked to stop (SIGINT = Ctrl-C, exit 130; SIGTERM = a scheduler, exit 143).
+    """The process was asked to stop (SIGINT = Ctrl-C, exit 130; SIGTERM = a scheduler, exit 143;
+    SIGHUP = a closed terminal, exit 129).
 
     A KeyboardInterrupt, so every ``finally`` runs and the partial work is removed as for Ctrl-C.
     """

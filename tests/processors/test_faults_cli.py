@@ -178,6 +178,7 @@ def _start(argv, **env) -> subprocess.Popen:
 
 
 @pytest.mark.parametrize("sig,code,said", [(signal.SIGTERM, 143, "stopped by SIGTERM; partial work removed"),
+                                           (signal.SIGHUP, 129, "stopped by SIGHUP; partial work removed"),
                                            (signal.SIGINT, 130, "interrupted; partial work removed")])
 def test_sigterm_is_handled_like_ctrl_c(old_shot, tmp_path, sig, code, said):
     out = tmp_path / "shot"
@@ -195,6 +196,18 @@ def test_sigterm_is_handled_like_ctrl_c(old_shot, tmp_path, sig, code, said):
     assert p.returncode == code, err
     assert said in _one_line_error(err, "run")
     assert _digests(out) == before and leftovers(out) == [] and not (out / LOCK_NAME).exists()
+
+
+def test_a_closed_pipe_ends_the_output_quietly(tmp_path):
+    """`usdface info --json FILE | head -c 10`: the reader stops reading; usdface exits as the
+    shell's tools do (141, SIGPIPE's code) without a traceback."""
+    p = subprocess.Popen([sys.executable, "-m", "usdface", "info", "--json", str(SA / "capture" / "JawMoCap.usdc")],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    first = p.stdout.read(10)
+    p.stdout.close()  # the reader is gone
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=60) == 141 and first.startswith(b"{")
+    assert err == ""
 
 
 def test_sigkill_mid_commit_then_the_next_run_repairs(old_shot, tmp_path, capsys):

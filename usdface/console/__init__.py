@@ -7,8 +7,8 @@ Every error reaches the user as one line on stderr (no traceback) and an exit co
 usage (a UsdFaceError; also argparse's own usage errors), 1 a failure while working (environment
 faults included: disk full, read-only folder, permission, out of memory, a USD error, an output
 folder locked by another run; a failed `check`; a batch with a failed shot), 130 interrupted by
-Ctrl-C (SIGINT), 143 stopped by SIGTERM (how farm schedulers stop jobs), both after removing the
-partial work.
+Ctrl-C (SIGINT), 143 stopped by SIGTERM (how farm schedulers stop jobs), 129 by SIGHUP (a closed
+terminal or ssh session), all after removing the partial work.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import signal
 import sys
 import threading
 
-from ..errors import Interrupted, UsdFaceError
+from ..errors import Interrupted, UsdFaceError, stop_signals
 from .arguments import options_from_args
 from .parser import build_parser
 
@@ -84,12 +84,15 @@ def run_command(processor, args):
 
 
 class _terminate_as_interrupt:
-    """SIGTERM raises :class:`~usdface.errors.Interrupted` (like Ctrl-C), so partial work is removed."""
+    """SIGTERM and SIGHUP raise :class:`~usdface.errors.Interrupted` (like Ctrl-C), so partial work
+    is removed."""
 
     def __enter__(self):
-        self.previous = None
-        if threading.current_thread() is threading.main_thread() and hasattr(signal, "SIGTERM"):
-            self.previous = signal.signal(signal.SIGTERM, self._raise)
+        self.previous = {}
+        if threading.current_thread() is threading.main_thread():
+            for s in stop_signals():
+                if s != signal.SIGINT:  # Ctrl-C already raises KeyboardInterrupt
+                    self.previous[s] = signal.signal(s, self._raise)
         return self
 
     @staticmethod
@@ -97,8 +100,8 @@ class _terminate_as_interrupt:
         raise Interrupted(signum)
 
     def __exit__(self, *exc):
-        if self.previous is not None:
-            signal.signal(signal.SIGTERM, self.previous)
+        for s, handler in self.previous.items():
+            signal.signal(s, handler)
         return False
 
 
@@ -140,5 +143,12 @@ def main(argv: list[str] | None = None) -> int:
 
         print(f"{name}: error: {describe_exception(exc)}", file=sys.stderr)
         return 1
-    _print_result(result, args.json, args.quiet)
+    try:
+        _print_result(result, args.json, args.quiet)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # the reader stopped reading (`usdface info --json FILE | head -c 10`): end quietly, as the
+        # shell's tools do on SIGPIPE (Python would print a traceback when it flushes at exit)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     return int(result.exit_code)

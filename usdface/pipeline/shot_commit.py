@@ -54,7 +54,7 @@ import threading
 import time
 from pathlib import Path
 
-from ..errors import LockedError
+from ..errors import LockedError, stop_signals
 from ..fileutil import (HOST_TAG, TEMPORARY_MAX_AGE, format_bytes, fsync_dir, fsync_file, inject_fault, owner_is_dead,
                         same_file_problems, temporary_owner, write_error)
 from ..usd.shot_record import MARKER_NAME, RUN_FOLDER_PREFIX, SUMMARY_NAME, is_shot_stage, leftovers, shot_record
@@ -347,12 +347,13 @@ def tidy_unlocked_folder(folder) -> dict | None:
 
 @contextlib.contextmanager
 def _signals_deferred():
-    """SIGINT and SIGTERM wait until the block ends (a commit is never stopped half-way), then act."""
+    """SIGINT, SIGTERM and SIGHUP wait until the block ends (a commit is never stopped half-way),
+    then act."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     pending: list[int] = []
-    sigs = [s for s in (signal.SIGINT, getattr(signal, "SIGTERM", None)) if s is not None]
+    sigs = list(stop_signals())
     previous = {}
     try:
         for s in sigs:
