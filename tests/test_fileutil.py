@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -118,3 +119,49 @@ def test_failure_cause_and_one_line_descriptions(tmp_path):
         Sdf.Layer.CreateNew("/proc/a.usda")
     line = describe_exception(info.value)
     assert line.startswith("USD error: ") and "\n" not in line and "pxrInternal" not in line
+
+
+# -- temporaries: one naming scheme, short enough, tidied by the next writer of the output ----------
+
+def _dead_pid() -> int:
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-c", "pass"])
+    p.wait()
+    return p.pid
+
+
+def test_an_output_name_of_250_bytes_is_written(tmp_path, capsys):
+    """A legal 250-byte output name: the temporary beside it must fit in 255 bytes too (issue 20,
+    case 10: 'File name too long' about the temporary's name)."""
+    from usdface.console import main
+
+    sa = Path(__file__).resolve().parents[1] / "sample_assets"
+    name = "m" * 245 + ".usdc"
+    assert len(name.encode()) == 250
+    assert main(["import-mesh", str(sa / "meshes" / "makehuman_hm08_face_cm.obj"), "-o", str(tmp_path / name),
+                 "-q"]) == 0, capsys.readouterr().err
+    assert (tmp_path / name).is_file() and [p.name for p in tmp_path.iterdir()] == [name]
+    wide = "é" * 122 + ".json"  # 249 bytes of two-byte characters
+    with atomic_write(tmp_path / wide) as f:
+        f.write("{}\n")
+    assert (tmp_path / wide).read_text() == "{}\n"
+
+
+def test_the_next_writer_of_an_output_removes_what_a_killed_one_left(tmp_path):
+    """After a SIGKILL the temporary stays (nothing runs); the next command writing that output
+    removes it. A live writer's temporary and other outputs' temporaries stay."""
+    from usdface.fileutil import HOST_TAG, temporary_path
+
+    dead = _dead_pid()
+    left = tmp_path / f".cap.tmp-{dead}@{HOST_TAG}-0badcafe.usdc"
+    live = tmp_path / f".cap.tmp-{os.getpid()}@{HOST_TAG}-00c0ffee.usdc"
+    other = tmp_path / f".other.tmp-{dead}@{HOST_TAG}-0badcafe.usdc"
+    for p in (left, live, other):
+        p.write_text("partial")
+    with atomic_write(tmp_path / "cap.usdc") as f:
+        f.write("whole")
+    assert not left.exists() and live.exists() and other.exists()
+    assert (tmp_path / "cap.usdc").read_text() == "whole"
+    assert temporary_path(tmp_path / "other.usdc").name.startswith(".other.tmp-") and not other.exists()

@@ -44,6 +44,7 @@ HOST_TAG = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname() or "localhost")[:4
 _OWNER_RE = re.compile(r"(?:\.tmp-|^\.trash-|^\.usdface-run-)(?P<pid>\d+)(?:@(?P<host>[A-Za-z0-9_]+))?(?:-[0-9a-f]+)?"
                        r"(?:\.[A-Za-z0-9]+)?$")
 _TEMP_FILE_RE = re.compile(r"^\..+\.tmp-")
+_TEMP_NAME_RE = re.compile(r"^\.(?P<prefix>.+?)\.tmp-\d+(?:@[A-Za-z0-9_]+)?-[0-9a-f]+")
 
 
 def file_digest(path: str | os.PathLike) -> str:
@@ -98,11 +99,72 @@ def set_default_mode(path: str | os.PathLike) -> None:
 
 # -- temporaries and their owners ----------------------------------------------------------------
 
+#: the longest file name most file systems take (bytes)
+NAME_MAX = 255
+#: the longest temporary name usdface makes: USD saves a layer through a temporary of its own named
+#: after ours (``.<our name>.XXXXXX``), which must fit in NAME_MAX too
+TEMPORARY_NAME_MAX = NAME_MAX - 40
+
+
 def temporary_path(path: str | os.PathLike) -> Path:
     """A temporary name beside ``path`` (same suffix, so the same file format), naming its owner:
-    ``.<stem>.tmp-<pid>@<host>-<token><suffix>``."""
+    ``.<stem>.tmp-<pid>@<host>-<token><suffix>``, the stem shortened so that the name fits in
+    :data:`TEMPORARY_NAME_MAX` bytes whatever the output's name. Every temporary usdface writes is named so
+    (run folders ``.usdface-run-<pid>@<host>-<token>``, cache entries ``.tmp-<pid>@<host>-<token>``).
+
+    Temporaries of ``path`` left by a dead process (SIGKILL, a power cut) are removed first: the
+    next command writing an output tidies what an earlier one left of it.
+    """
     p = Path(path)
-    return p.with_name(f".{p.stem}.tmp-{os.getpid()}@{HOST_TAG}-{secrets.token_hex(4)}{p.suffix}")
+    remove_dead_temporaries(p)
+    tail = f".tmp-{os.getpid()}@{HOST_TAG}-{secrets.token_hex(4)}{p.suffix}"
+    return p.with_name("." + _name_prefix(p.stem, TEMPORARY_NAME_MAX - 1 - len(os.fsencode(tail))) + tail)
+
+
+def _name_prefix(stem: str, budget: int) -> str:
+    """The longest start of ``stem`` that fits in ``budget`` bytes (whole characters; never empty)."""
+    encoded = os.fsencode(stem)[:max(budget, 1)]
+    while encoded:
+        try:
+            return os.fsdecode(encoded) if encoded.decode("utf-8") else "_"
+        except UnicodeDecodeError:
+            encoded = encoded[:-1]  # a character cut in two
+    return "_"
+
+
+def temporaries_of(path: str | os.PathLike) -> list[Path]:
+    """The temporary files beside ``path`` that are (or were) being written as ``path``."""
+    p = Path(path)
+    try:
+        entries = list(os.scandir(p.parent if str(p.parent) else "."))
+    except OSError:
+        return []
+    found = []
+    for e in entries:
+        m = _TEMP_NAME_RE.match(e.name)
+        if m and e.name.endswith(p.suffix) and p.stem.startswith(m.group("prefix")) and \
+                e.is_file(follow_symlinks=False):
+            found.append(Path(e.path))
+    return found
+
+
+def remove_dead_temporaries(path: str | os.PathLike) -> list[Path]:
+    """Remove the temporaries of ``path`` whose owner is dead (this host) or, for another host's,
+    older than :data:`TEMPORARY_MAX_AGE`; returns them. Live owners' temporaries stay."""
+    import time
+
+    removed = []
+    for t in temporaries_of(path):
+        try:
+            mtime = t.stat().st_mtime
+        except OSError:
+            continue
+        dead = owner_is_dead(t.name, mtime)
+        if dead or (dead is None and time.time() - mtime > TEMPORARY_MAX_AGE):
+            with contextlib.suppress(OSError):
+                t.unlink()
+                removed.append(t)
+    return removed
 
 
 def is_temporary_name(name: str) -> bool:
