@@ -104,6 +104,7 @@ def test_run_passes_resample_and_start_frame(sample_assets, tmp_path, cli):
     (["--rbf", "paper", "--kernel", "cubic"], "does not decay"),
     (["--rbf", "paper", "--polynomial"], "interpolate only"),
     (["--stiffness", "no_such_widths.json"], "no_such_widths.json"),
+    (["--stiffness", "-1"], "--stiffness -1: expected a number > 0"),  # a width, not a file named -1
 ])
 def test_run_refuses_bad_transfer_options_before_work(argv, message, sample_assets, tmp_path, capsys, cli):
     code = cli("run", "--capture", sample_assets / "capture" / "JawMoCap.usdc", "--mesh",

@@ -59,12 +59,17 @@ def take_text(summary: dict) -> list[str]:
     """The lines ``usdface solve`` prints for :func:`take_summary`'s summary (with ``seconds``,
     ``files`` and, for a corrective shot, ``corrective`` added)."""
     u = summary["units"]
+
+    def cm(key):  # a residual, or n/a where there is none (a take without any valid frame)
+        v = summary.get(key)
+        return "n/a" if v is None or v != v else f"{v:.3f} {u}"
+
     lines = [f"wrote {summary['output']}: {summary['shapes']} shapes x {summary['deliveredFrames']} frames at "
              f"{summary['deliveredRate']:g} fps ({summary['timeSamples']} time samples), head motion "
              f"{'on /Face' if summary['headMotion'] else 'none'}, in {summary['seconds']:.2f} s",
              f"  solve: {summary['frames']} frames at {summary['rate']:g} Hz in {summary['solveSeconds']:.3f} s "
-             f"({summary['iterations']} iterations); marker residual mean {summary['residualMean']:.3f} {u} "
-             f"(still face {summary['stillResidualMean']:.3f} {u}), max {summary['residualMax']:.3f} {u}"]
+             f"({summary['iterations']} iterations); marker residual mean {cm('residualMean')} "
+             f"(still face {cm('stillResidualMean')}), max {cm('residualMax')}"]
     top = sorted(summary["weightMax"].items(), key=lambda kv: -kv[1])[:6]
     lines.append("  largest weights: " + ", ".join(f"{n} {v:.2f}" for n, v in top))
     pairs = summary["mirror"].get("prior", [])

@@ -29,10 +29,10 @@ def stiffness_value(value, flag):
         return positive_float(value, flag)
     if isinstance(value, (str, Path)):
         try:
-            return positive_float(float(value), flag)
-        except (ValueError, OptionError):
-            pass
-        return str(value)
+            float(value)
+        except ValueError:
+            return str(value)  # a JSON file of widths
+        return positive_float(value, flag)  # "-1" is a width, not a file name
     raise OptionError(f"{flag} {shown(value)}: expected a width in mesh units or a JSON file {{marker: width}}")
 
 

@@ -266,6 +266,7 @@ def _commit(job: _Job, f: dict, session, prov: dict, started: float) -> str:
 def _text(summary: dict, job: _Job) -> list[str]:
     """The lines `usdface run` prints."""
     o, out, steps = job.options, job.out, summary["steps"]
+    units = steps["import-mesh"]["units"] or "mesh units"
     cap, b = steps["import-capture"], steps["bind"]
     tr = steps.get("transfer") or steps.get("skel")
     bs = steps.get("blendshapes")
@@ -283,9 +284,8 @@ def _text(summary: dict, job: _Job) -> list[str]:
         lines.append(f"  transfer: {tr['mode']} {tr['kernel']}, {tr['seconds']:.2f} s"
                      + (f", width {tr['widthMedian']:.3g} {tr['units']}" if "widthMedian" in tr else ""))
     if bs:
-        lines.append(f"  blend shapes: {bs['shapes']} shapes, marker residual mean "
-                     f"{bs['residualMean'] or float('nan'):.3f} (a still face: "
-                     f"{bs['stillResidualMean'] or float('nan'):.3f}), curves at {bs['shotStage']['rate']:g} fps")
+        lines.append(f"  blend shapes: {bs['shapes']} shapes, marker residual mean {_cm(bs['residualMean'], units)} "
+                     f"(a still face: {_cm(bs['stillResidualMean'], units)}), curves at {bs['shotStage']['rate']:g} fps")
     if job.video:
         lines.append(f"  video: {steps['track']['frames']} frames tracked, "
                      f"{100 * steps['track']['validFraction']:.1f}% of marker samples found, lifted with depth "
@@ -294,6 +294,11 @@ def _text(summary: dict, job: _Job) -> list[str]:
         lines.append(_skel_line(steps["skel"]))
     lines.append(f"  total {summary['seconds']:.1f} s; files: {', '.join(job.files)}")
     return lines
+
+
+def _cm(value, units: str) -> str:
+    """A residual for the terminal: ``0.165 cm``, or ``n/a`` where there is none (a one-frame take)."""
+    return "n/a" if value is None or value != value else f"{value:.3f} {units}"
 
 
 def _skel_line(sk: dict) -> str:

@@ -142,8 +142,9 @@ def format_description(d: dict) -> list[str]:
             lines.append(f"      region {name}: role {r['role']}, {r['vertices']} vertices")
         if "binding" in p:
             b = p["binding"]
+            u = d["units"] or "mesh units"  # the binding's residuals are in the mesh's units
             lines.append(f"      binding: {b['markers']} markers ({b['method']}, retarget {b['retarget']}), surface residual median "
-                         f"{b['residualMedian']:.3g} max {b['residualMax']:.3g}")
+                         f"{b['residualMedian']:.3g} {u}, max {b['residualMax']:.3g} {u}")
         for name, m in p.get("distanceMatrices", {}).items():
             lines.append(f"      distance matrix {name}: {m['method']}/{m['backend']}, {m['markers']} markers")
         if "transfer" in p:

@@ -390,8 +390,12 @@ def _clashes(shots, cache_path, summary_path) -> list[str]:
     clashes, seen = [], {}
     for s in shots:
         if s.output in seen:
-            clashes.append(f"{s.name} and {seen[s.output]} both write {s.output}")
-        seen[s.output] = s.name
+            other = seen[s.output]
+            # shots named alike (jaw200.csv and jaw200.trc): say which files they are
+            a, b = (s.name, other.name) if s.name != other.name else \
+                (f"{s.name} ({Path(s.capture).name})", f"{other.name} ({Path(other.capture).name})")
+            clashes.append(f"{a} and {b} both write {s.output}")
+        seen[s.output] = s
     for s in shots:
         out = Path(s.output)
         if cache_path and (Path(cache_path) == out or out in Path(cache_path).parents or Path(cache_path) in out.parents):
