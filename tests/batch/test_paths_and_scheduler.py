@@ -234,3 +234,13 @@ def test_a_shot_never_writes_over_another_shots_input(tmp_path):
                                                                   layout=layout)])
     with pytest.raises(InputError, match=r"would overwrite the input .*summary.json \(layout of shot "):
         load_manifest(m)
+
+
+def test_shots_named_alike_are_told_apart_in_a_clash(tmp_path):
+    for name in ("jaw200.csv", "jaw200.trc"):
+        (tmp_path / name).write_text("not read: the manifest is checked before any work\n")
+    m = _manifest(tmp_path, [_shot(output="out/{capture}") | {"capture": tmp_path / "jaw200.csv"},
+                             _shot(output="out/{capture}") | {"capture": tmp_path / "jaw200.trc"}])
+    with pytest.raises(InputError, match=r"makehuman_hm08_face_cm/jaw200 \(jaw200.trc\) and "
+                                         r"makehuman_hm08_face_cm/jaw200 \(jaw200.csv\) both write"):
+        load_manifest(m)
