@@ -317,3 +317,11 @@ def test_real_full_disk_and_read_only_mount(old_shot, tmp_path):
     assert res["batch"][0] == 1
     assert "disk full" in res["batch_error"] and "\n" not in res["batch_error"], res["batch_error"]
     assert res["small_left"] == ["batch.json", "shot"]
+
+
+def test_a_symbolic_link_loop_as_outdir_is_named(tmp_path, capsys):
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    assert main(RUN + ["-o", str(loop)]) == 2
+    line = _one_line_error(capsys.readouterr().err, "run")
+    assert f"-o {loop}: a symbolic link that loops or points nowhere" in line

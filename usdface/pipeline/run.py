@@ -91,6 +91,9 @@ def _check(mesh, capture, out_dir, o: RunOptions) -> _Job:
         if path is not None and not Path(path).is_file():
             raise OptionError(f"{label} {path}: no such file")
     out = Path(out_dir)
+    if out.is_symlink() and not out.exists():
+        raise OptionError(f"-o {out}: a symbolic link that loops or points nowhere (to {os.readlink(out)}); "
+                          "give a folder")
     if out.exists() and not out.is_dir():
         raise OptionError(f"-o {out}: exists and is not a folder")
     from ..rbf.stiffness import parse_stiffness
