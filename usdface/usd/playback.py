@@ -13,11 +13,13 @@ from pxr import Usd, UsdGeom, UsdSkel
 
 from ..errors import InputError
 from ..mesh.model import Region
+from ..playblast.plan import PlayblastParameters, PlayblastShots
+from ..playblast.timing import shot_times
 from .evaluate import FaceEvaluator, remove_head_motion
 from .layers import open_stage
 from .mesh_layer import find_mesh
 
-__all__ = ["ShotReader", "remove_head_motion", "shot_name"]
+__all__ = ["ShotReader", "open_playblast_shots", "remove_head_motion", "shot_name"]
 
 
 def _skinned(prim: Usd.Prim) -> bool:
@@ -172,3 +174,26 @@ def shot_name(path) -> str:
     if p.stem.startswith("shot") and p.parent.name:
         return p.parent.name + ("" if p.stem == "shot" else p.stem[4:])
     return p.stem
+
+
+def open_playblast_shots(shot, params: PlayblastParameters) -> PlayblastShots:
+    """Open a playblast's shots and check them, in this order: the shot (a face mesh that moves)
+    and the time codes it plays (``params.frame_range``), the reference (as many points, covering
+    those time codes), the second shot (it moves). Errors name the file and the flag."""
+    reader = ShotReader.open(shot)
+    if not reader.animated:
+        raise InputError(f"shot {shot}: the face has no animation (no time-sampled points, no skinning); "
+                         "use `usdface preview` for a still")
+    times = shot_times(reader.start, reader.end, params.frame_range, what=f"shot {shot}")
+    reference = other = None
+    if params.reference is not None:
+        reference = ShotReader.open(params.reference)
+        if reference.rest_points.shape != reader.rest_points.shape:
+            raise InputError(f"--reference {params.reference}: {reference.rest_points.shape[0]} points; the shot has "
+                             f"{reader.rest_points.shape[0]}")
+        shot_times(reference.start, reference.end, (times[0], times[-1]), what=f"reference {params.reference}")
+    if params.compare is not None:
+        other = ShotReader.open(params.compare)
+        if not other.animated:
+            raise InputError(f"--compare {params.compare}: the face has no animation")
+    return PlayblastShots(shot=reader, times=times, reference=reference, compare=other)
