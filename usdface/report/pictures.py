@@ -7,7 +7,7 @@ import numpy as np
 from ..preview import (PointSet, RegionColors, RenderStyle, ScalarColors, contact_sheet, encode_jpeg, fit_camera,
                        render_mesh)
 
-__all__ = ["binding_picture", "contact_frames", "contact_sheet_picture", "map_picture", "thumbnail"]
+__all__ = ["binding_picture", "contact_frames", "contact_sheet_picture", "map_picture", "shot_pictures", "thumbnail"]
 
 
 def contact_frames(d, count: int = 8) -> list[int]:
@@ -69,3 +69,17 @@ def thumbnail(d, reader, *, size: int = 200) -> bytes:
     img = render_mesh(pts, reader.triangles, style=RenderStyle(size=(size, size), supersample=2, legend=False),
                       colors=ScalarColors(disp))
     return encode_jpeg(img)
+
+
+def shot_pictures(d, reader) -> dict:
+    """The pictures of a shot's section (JPEG bytes): ``contact`` (picture, time codes),
+    ``binding``, ``vertexMax`` (largest displacement of each vertex) and ``hybrid`` (the hybrid
+    weight), each None or absent when the shot lacks what it shows."""
+    pics = {"contact": contact_sheet_picture(d, reader), "binding": binding_picture(d, reader)}
+    if d.vertex_max is not None:
+        pics["vertexMax"] = map_picture(reader, d.vertex_max, label=f"largest displacement ({d.units})",
+                                        title=f"{d.name}: largest displacement")
+    if reader.hybrid_weight is not None:
+        pics["hybrid"] = map_picture(reader, np.asarray(reader.hybrid_weight), label="hybrid weight w",
+                                     title=f"{d.name}: hybrid weight", vrange=(0.0, 1.0))
+    return pics
