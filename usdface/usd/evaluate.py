@@ -146,6 +146,11 @@ class FaceEvaluator:
     joints : list of str, the skeleton's joint order ([] without skinning)
     blend_shapes : list of str, the mesh's ``skel:blendShapes`` order ([] without blend shapes)
     animated : bool, whether more than one time code moves the face (in world space)
+    triangles : ndarray (T, 3) int64, the polygons' fan triangulation (read on first use, as
+        the following)
+    regions : list of Region; hybrid_weight : ndarray (N,) or None
+    binding : Binding or None, the markers bound to the surface (:meth:`bound_points`)
+    marker_names : list of str, the capture's markers (:meth:`markers`; [] without a capture)
     """
 
     def __init__(self, stage: Usd.Stage, *, mesh: str | Sdf.Path | None = None, source: str | None = None):

@@ -7,17 +7,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pxr import Usd, UsdGeom, UsdSkel
 
 from ..errors import InputError
 from ..mesh.model import Region
-from ..playblast.plan import PlayblastParameters, PlayblastShots
-from ..playblast.timing import shot_times
 from .evaluate import FaceEvaluator, remove_head_motion
 from .layers import open_stage
 from .mesh_layer import find_mesh
+
+if TYPE_CHECKING:
+    from ..playblast.plan import PlayblastParameters, PlayblastShots
 
 __all__ = ["ShotReader", "open_playblast_shots", "remove_head_motion", "shot_name"]
 
@@ -180,6 +182,9 @@ def open_playblast_shots(shot, params: PlayblastParameters) -> PlayblastShots:
     """Open a playblast's shots and check them, in this order: the shot (a face mesh that moves)
     and the time codes it plays (``params.frame_range``), the reference (as many points, covering
     those time codes), the second shot (it moves). Errors name the file and the flag."""
+    from ..playblast.plan import PlayblastShots  # (the renderer is loaded only for a playblast)
+    from ..playblast.timing import shot_times
+
     reader = ShotReader.open(shot)
     if not reader.animated:
         raise InputError(f"shot {shot}: the face has no animation (no time-sampled points, no skinning); "
