@@ -12,7 +12,7 @@ folder when not given). Measured in one run on this machine, same encoder settin
   processes: wall time and frames/s;
 - baseline: a bare loop writing the same N frames (decoded back from the playblast into memory
   beforehand) with the same MovieWriter: the cost of encoding alone;
-- render alone: the same frames as stills (playblast_stills, one thread, no encoder).
+- render alone: the same frames as stills (``plan_playblast(...).stills``, one thread, no encoder).
 
 Prints the ratios playblast / bare encode (1.0 = rendering costs nothing on top of the encode;
 the goal is <= 2.0: rendering no more than the encode) and the machine's load, since the machine
@@ -33,9 +33,22 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from usdface import api  # noqa: E402
 from usdface.media import MovieWriter, read_movie  # noqa: E402
 from usdface.options import PlayblastOptions  # noqa: E402
-from usdface.processors.playblast import playblast, playblast_stills  # noqa: E402
+from usdface.playblast import plan_playblast  # noqa: E402
+from usdface.usd.playback import open_playblast_shots  # noqa: E402
+
+
+def playblast(shot, output, options):
+    """`usdface playblast` through the Python API (the command's own function)."""
+    return api.playblast(shot, options, output=output)
+
+
+def playblast_stills(shot, times, options):
+    """The same frames as the movie, rendered in this thread and not encoded."""
+    params = options.parameters()
+    return plan_playblast(open_playblast_shots(shot, params), params).stills(times)
 
 
 def main_job(folder: Path) -> Path:

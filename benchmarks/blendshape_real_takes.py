@@ -39,8 +39,8 @@ def main(argv=None) -> int:
     from usdface.io.meshes import read_mesh
     from usdface.mesh.binding import bind_layout
     from usdface.mesh.layout import read_layout
-    from usdface.preview import contact_sheet, fit_camera, render_mesh, write_png
-    from usdface.preview.curves import plot_curves, stack_panels
+    from usdface.preview import PointSet, RenderStyle, ScalarColors, contact_sheet, fit_camera, render_mesh, write_png
+    from usdface.preview.curves import CurveStyle, plot_curves, stack_panels
     from usdface.capture.conditioning import Conditioning, condition_capture
     from usdface.usd.inputs import load_capture
 
@@ -96,16 +96,17 @@ def main(argv=None) -> int:
                                   y_range=(0, 1), spans=spans, span_label=span_label))
         panels.append(plot_curves(t, np.stack([sol.residual, sol.still_residual], axis=1),
                                   ["solved", "still face"], title=f"{take}: marker residual (cm, RMS per frame)",
-                                  size=(1200, 200)))
+                                  style=CurveStyle(size=(1200, 200))))
         for fr in SHEET_FRAMES[take]:
             posed = rig.evaluate(w[fr])
             target = binding.surface_points(mesh.points) + np.nan_to_num(d[fr])
             if camera is None:
                 camera = fit_camera([mesh.points, posed], view="front", size=(360, 360), colorbar=True)
-            cells.append(render_mesh(posed, mesh.triangles(), camera=camera,
-                                     scalars=np.linalg.norm(posed - mesh.points, axis=1), scalar_range=(0, 3),
-                                     scalar_label="cm", markers=target, extra_points=binding.surface_points(posed),
-                                     marker_name="capture", extra_name="posed rig", legend=False))
+            cells.append(render_mesh(posed, mesh.triangles(), camera=camera, style=RenderStyle(legend=False),
+                                     colors=ScalarColors(np.linalg.norm(posed - mesh.points, axis=1), range=(0, 3),
+                                                         label="cm"),
+                                     markers=PointSet(target, name="capture"),
+                                     extra=PointSet(binding.surface_points(posed), name="posed rig")))
             k = int(np.argmax(w[fr]))
             captions.append(f"{take} {fr}: {rig.names[k]} {w[fr, k]:.2f}" if w[fr, k] > 0 else f"{take} {fr}: neutral")
     write_png(out / "curves.png", stack_panels(panels))

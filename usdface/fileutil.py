@@ -487,17 +487,6 @@ def describe_exception(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def check_report_output(output) -> Path:
-    """An HTML report's path, checked before any work: an .html file in a writable folder."""
-    from .errors import OptionError
-
-    out = Path(output)
-    if out.suffix.lower() not in (".html", ".htm"):
-        raise OptionError(f"-o {out}: a report is an .html file")
-    probe_writable_folder(out, what="report")  # fails now, before any rendering
-    return out
-
-
 def probe_writable_folder(path: str | os.PathLike, *, what: str) -> Path:
     """The folder of the output ``path``, checked to exist and to take a new file (a temporary file
     is created and removed: permission bits do not tell, root ignores them and read-only mounts

@@ -24,8 +24,17 @@ def displacement_curve(shot, times, *, stabilized=False):
     return np.linalg.norm(r.face_points(times, stabilized=stabilized) - r.rest_points, axis=2).max(axis=1)
 
 
+def stills_of(shot, times, options):
+    """The movie frames at ``times`` as the playblast draws them (no encoding): the shots opened
+    by the usd layer, the frames planned by the playblast package (what a pipeline may call)."""
+    from usdface.playblast import plan_playblast
+    from usdface.usd.playback import open_playblast_shots
+
+    params = options.parameters()
+    return plan_playblast(open_playblast_shots(shot, params), params).stills(times)
+
+
 def test_every_time_sample_one_frame_and_the_motion_where_the_shot_has_it(shots, cli, tmp_path):
-    from usdface.processors.playblast import playblast_stills
 
     shot = shots["hybrid"] / "shot.usda"
     out = tmp_path / "jaw.mp4"
@@ -45,7 +54,8 @@ def test_every_time_sample_one_frame_and_the_motion_where_the_shot_has_it(shots,
     times = [340, 345, 350, 355, 360, 460]
     near = sorted({t + d for t in times for d in (-3, -1, 0, 1, 3)})
     stills = dict(zip(near, (s.astype(np.float64) for s in
-                             playblast_stills(shot, near, PlayblastOptions(frame_range=(300, 480), size=(320, 180), stabilized=True)))))
+                             stills_of(shot, near, PlayblastOptions(frame_range=(300, 480), size=(320, 180),
+                                                                    stabilized=True)))))
     for t in times:
         moving = np.abs(stills[t - 3] - stills[t + 3]).max(axis=2) > 24
         moving[:40] = False  # the burn-in band
@@ -89,8 +99,8 @@ def test_default_playblast_of_the_main_job(shots, cli, tmp_path):
 
 
 def test_skeleton_shot_is_skinned_by_usdskel(shots, cli, tmp_path):
-    """A skeleton shot plays its skinning (UsdSkel evaluates it; the shared evaluator will take over
-    in usdface.usd.playback.face_points_at), not a still face."""
+    """A skeleton shot plays its skinning (UsdSkel evaluates it through the one reader,
+    usdface.usd.evaluate.FaceEvaluator), not a still face."""
     from usdface.usd.playback import ShotReader
 
     shot = shots["hybrid"] / "shot_skel.usda"
@@ -191,8 +201,8 @@ def test_a_missing_encoder_names_what_to_install(shots, cli, tmp_path, capsys, m
 
 
 def test_a_failure_while_rendering_leaves_nothing(shots, tmp_path, monkeypatch):
+    from usdface import api
     from usdface.playblast import pipeline
-    from usdface.processors.playblast import playblast
 
     calls = {"n": 0}
     real = pipeline.Compositor.__call__
@@ -205,7 +215,8 @@ def test_a_failure_while_rendering_leaves_nothing(shots, tmp_path, monkeypatch):
 
     monkeypatch.setattr(pipeline.Compositor, "__call__", flaky)
     with pytest.raises(RuntimeError):
-        playblast(shots["hybrid"] / "shot.usda", tmp_path / "x.mp4", PlayblastOptions(frame_range=(0, 20), size=(160, 90)))
+        api.playblast(shots["hybrid"] / "shot.usda", PlayblastOptions(frame_range=(0, 20), size=(160, 90)),
+                      output=tmp_path / "x.mp4")
     assert list(tmp_path.iterdir()) == []
 
 

@@ -10,7 +10,9 @@ import shutil
 import numpy as np
 import pytest
 
+from usdface import api
 from usdface.errors import InputError, OptionError, WriteError
+from usdface.options import ReportOptions
 
 pytest.importorskip("plotly")
 pytest.importorskip("av")
@@ -32,12 +34,10 @@ def keys_in(html: str) -> list:
 @pytest.fixture(scope="module")
 def gaps_report(shots, tmp_path_factory):
     """The report of the take with filled gaps, with its playblast (300 frames, small)."""
-    from usdface.processors.report import report
-
     d = tmp_path_factory.mktemp("report")
     out = d / "jaw_gaps.html"
-    summary = report(shots["gaps"], out, playblast_size=(320, 180))
-    return {"out": out, "summary": summary, "html": out.read_text()}
+    result = api.report(shots["gaps"], ReportOptions(playblast_size=(320, 180)), output=out)
+    return {"out": out, "summary": result.summary, "html": out.read_text()}
 
 
 def test_report_is_one_offline_file_with_every_plot(gaps_report, shots):
@@ -110,8 +110,6 @@ def test_report_opened_in_a_real_browser(gaps_report, browser, page_opener, tmp_
 
 def test_blend_shape_solve_hook(shots, tmp_path):
     """A run folder with curves.csv and a per-frame residual gets the blend-shape section."""
-    from usdface.processors.report import report
-
     d = tmp_path / "bs"
     shutil.copytree(shots["gaps"], d)
     frames = np.arange(300)
@@ -124,7 +122,7 @@ def test_blend_shape_solve_hook(shots, tmp_path):
     summary["steps"]["solve"] = {"residualPerFrame": list(np.round(0.05 + 0.01 * jaw, 4)), "seconds": 1.0}
     (d / "summary.json").write_text(json.dumps(summary))
     out = tmp_path / "bs.html"
-    report(d, out, playblast=False)
+    api.report(d, ReportOptions(no_playblast=True), output=out)
     html = out.read_text()
     keys = keys_in(html)
     assert "blendshape-curves" in keys and "blendshape-residual" in keys
@@ -178,21 +176,59 @@ capture = "{tmp_path / 'missing.ma'}"
     assert images and all(images)
 
 
+def test_batch_report_from_a_summary_with_movies_and_failures(shots, tmp_path):
+    """What `usdface batch --report` calls (usdface.pipeline.report.batch_report): a failed shot and an
+    unreadable one are listed with their errors and get no section; with ReportOptions each finished
+    shot also gets its playblast (the playblast processor, through the registry) in <report>_media/."""
+    from usdface.media import movie_info
+    from usdface.pipeline.report import batch_report
+
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    summary = {"manifest": "m.toml", "counts": {"ok": 2, "failed": 1}, "seconds": 12.5, "mode": "serial",
+               "workers": 0, "summaryFile": str(tmp_path / "b.json"),
+               "shots": [{"name": "gaps", "status": "ok", "output": str(shots["gaps"]), "seconds": 3.0,
+                          "steps": {"bind": 0.5}, "frames": 300},
+                         {"name": "broken", "status": "failed", "error": "boom"},
+                         {"name": "unreadable", "status": "ok", "output": str(empty)}]}
+    result = batch_report(summary)  # beside the summary file, no movies
+    out = tmp_path / "b.html"
+    assert result.files == {"output": str(out)} and (result.summary["shots"], result.summary["sections"]) == (3, 1)
+    assert result.text[0].startswith(f"wrote {out}: 3 shot(s), 1 with plots")
+    html = out.read_text()
+    assert html.count('<section class="shot"') == 1 and html.count('id="shot-0"') == 1
+    assert '<span class="err">boom</span>' in html and "no summary.json" in html
+    assert "<video" not in html and not (tmp_path / "b_media").exists()
+    result = batch_report(summary, tmp_path / "m.html", options=ReportOptions(playblast_size=(160, 90)))
+    movie = tmp_path / "m_media" / "gaps.mp4"
+    info = movie_info(movie)
+    assert (info["width"], info["height"], info["frames"]) == (160, 90, 300)
+    assert 'src="m_media/gaps.mp4"' in (tmp_path / "m.html").read_text()
+    assert result.files["media"] == str(tmp_path / "m_media")
+    with pytest.raises(OptionError, match="renders each shot's movie itself"):
+        batch_report(summary, tmp_path / "x.html", options=ReportOptions(playblast=str(movie)))
+    with pytest.raises(InputError, match=r"batch summary .*none.json: no such file"):
+        batch_report(tmp_path / "none.json")
+    with pytest.raises(OptionError, match="names no summaryFile"):
+        batch_report({"shots": []})
+    assert not (tmp_path / "x.html").exists()
+
+
 # -- bad input ---------------------------------------------------------------------------------------
 
 def test_report_bad_input_leaves_nothing(shots, tmp_path, cli, capsys):
-    from usdface.processors.report import report
-
     with pytest.raises(InputError, match="no summary.json"):
-        report(shots["dir"], tmp_path / "r.html")
+        api.report(shots["dir"], output=tmp_path / "r.html")
     with pytest.raises(InputError, match="no such folder"):
-        report(tmp_path / "nowhere", tmp_path / "r.html")
+        api.report(tmp_path / "nowhere", output=tmp_path / "r.html")
     with pytest.raises(OptionError, match=r"\.html"):
-        report(shots["gaps"], tmp_path / "r.pdf")
+        api.report(shots["gaps"], output=tmp_path / "r.pdf")
     with pytest.raises(WriteError, match="cannot write report"):   # the environment's fault: exit 1
-        report(shots["gaps"], "/proc/usdface-report.html")
+        api.report(shots["gaps"], output="/proc/usdface-report.html")
     with pytest.raises(InputError, match="does not exist"):
-        report(shots["gaps"], tmp_path / "no" / "r.html")
+        api.report(shots["gaps"], output=tmp_path / "no" / "r.html")
+    with pytest.raises(InputError, match="--playblast .*: no such file"):
+        api.report(shots["gaps"], ReportOptions(playblast=str(tmp_path / "none.mp4")), output=tmp_path / "r.html")
     assert list(tmp_path.iterdir()) == []
     assert cli("report", shots["gaps"], "-o", "/proc/r.html", "--no-playblast") == 1
     err = capsys.readouterr().err.strip().splitlines()
@@ -201,14 +237,13 @@ def test_report_bad_input_leaves_nothing(shots, tmp_path, cli, capsys):
 
 def test_a_failed_playblast_leaves_no_report_and_no_media(shots, tmp_path, monkeypatch):
     from usdface.processors import playblast as pb
-    from usdface.processors.report import report
 
     def broken(*args, **kwargs):
         raise InputError("renderer exploded")
 
-    monkeypatch.setattr(pb, "playblast", broken)
+    monkeypatch.setattr(pb, "playblast", broken)  # the registry finds the processor when it runs
     with pytest.raises(InputError, match="renderer exploded"):
-        report(shots["gaps"], tmp_path / "r.html")
+        api.report(shots["gaps"], output=tmp_path / "r.html")
     assert list(tmp_path.iterdir()) == []
 
 

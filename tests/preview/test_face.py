@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from usdface.preview import Camera, polygon_edges, render_buffers, render_mesh, render_sequence, write_png
+from usdface.preview import (Camera, PointSet, RegionColors, RenderStyle, ScalarColors, SheetLayout, polygon_edges,
+                             render_buffers, render_mesh, render_sequence, write_png)
 
 BG = (255, 0, 255)
 
@@ -136,8 +137,8 @@ def test_region_render_of_the_real_face(face, tmp_path):
                "rightEye": grow(face["right_eye"])}
     cam = Camera.fit(p, size=(512, 512))
     t0 = time.perf_counter()
-    img = render_mesh(p, tris, camera=cam, region_colors=regions, background=BG,
-                      title="hm08 face", markers=p[face["mouth"][:3]] + [0, 0, 0.1], marker_labels=["a", "b", "c"])
+    img = render_mesh(p, tris, camera=cam, colors=RegionColors(regions), style=RenderStyle(background=BG),
+                      title="hm08 face", markers=PointSet(p[face["mouth"][:3]] + [0, 0, 0.1], labels=["a", "b", "c"]))
     elapsed = time.perf_counter() - t0
     print(f"hm08 face, {len(tris)} triangles, 512x512 supersample 2: {elapsed:.3f} s")
     # through each eye hole: the background colour
@@ -166,7 +167,8 @@ def test_sequence_of_real_expressions_shares_one_camera(face, shared_data, tmp_p
     shapes = ("jawOpen", "mouthSmileLeft", "browInnerUp")
     frames = np.stack([p] + [p + units["deltas"][names.index(n)] for n in shapes])
     disp = np.linalg.norm(frames - p, axis=2)
-    sheet = render_sequence(frames, face["tris"], frame_numbers=[0, 10, 20, 30], scalars=disp,
-                            scalar_label="displacement (cm)", cell_size=(200, 200), columns=2, title="hm08 units")
+    sheet = render_sequence(frames, face["tris"], frame_numbers=[0, 10, 20, 30],
+                            colors=ScalarColors(disp, label="displacement (cm)"), style=RenderStyle(size=(200, 200)),
+                            layout=SheetLayout(columns=2, title="hm08 units"))
     assert sheet.ndim == 3 and sheet.shape[0] > 400 and sheet.shape[1] > 400
     write_png(tmp_path / "sheet.png", sheet)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdface.preview import Camera, render_mesh
+from usdface.preview import Camera, PointSet, RegionColors, RenderStyle, render_mesh
 from usdface.preview.labels import boxes_overlap, place_labels
 
 
@@ -64,8 +64,8 @@ def test_preview_labels_at_every_size(jaw_frame, size):
     mesh, names, markers = jaw_frame
     bound = markers + np.array([0.4, -0.3, 0.2])
     info = {}
-    img = render_mesh(mesh.points, mesh.triangles(), size=(size, size), markers=markers, marker_labels=names,
-                      extra_points=bound, title="jaw  t=441", label_info=info, supersample=1)
+    img = render_mesh(mesh.points, mesh.triangles(), style=RenderStyle(size=(size, size), supersample=1),
+                      markers=PointSet(markers, labels=names), extra=bound, title="jaw  t=441", label_info=info)
     boxes, placed = info["boxes"], info["placed"]
     assert img.shape == (size, size, 3)
     inside = boxes[placed]
@@ -85,8 +85,8 @@ def test_preview_labels_at_every_size(jaw_frame, size):
 def test_marker_glyphs_scale_to_the_picture(jaw_frame, size):
     mesh, names, markers = jaw_frame
     info = {}
-    render_mesh(mesh.points, mesh.triangles(), size=(size, size), markers=markers, label_info=info,
-                supersample=1, legend=False)
+    render_mesh(mesh.points, mesh.triangles(), style=RenderStyle(size=(size, size), supersample=1, legend=False),
+                markers=markers, label_info=info)
     cam = Camera.fit([mesh.points, markers], size=(size, size), margin=0.06)
     xy, _ = cam.project(markers)
     d = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
@@ -109,8 +109,8 @@ def test_loop_regions_are_visible_on_the_face(jaw_frame):
 
     mesh, _, _ = jaw_frame
     regions = find_hole_regions(mesh)
-    img = render_mesh(mesh.points, mesh.triangles(), size=(512, 512), region_colors=regions, legend=False,
-                      supersample=1).astype(np.float64)
+    img = render_mesh(mesh.points, mesh.triangles(), colors=RegionColors(regions),
+                      style=RenderStyle(size=(512, 512), legend=False, supersample=1)).astype(np.float64)
     pal = region_palette([r.name for r in regions], [r.role for r in regions])
     clay = np.array(CLAY[::-1]) * 255
     for name in ("mouth", "leftEye", "rightEye"):

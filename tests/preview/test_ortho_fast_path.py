@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from usdface.io.meshes import read_mesh
-from usdface.preview import Camera, colormap_lut, render_buffers, render_mesh
+from usdface.preview import Camera, RenderStyle, colormap_lut, render_buffers, render_mesh
 from usdface.preview import raster as raster_module
 from usdface.preview.colormap import CLAY, NAN_COLOR
 from usdface.preview.shading import _background, _covered_box, _shade
@@ -114,7 +114,7 @@ def test_reused_buffers_equal_fresh_ones_after_a_larger_frame(face, projection):
     assert np.isfinite(fresh.depth[fresh.triangle >= 0]).all()
     # and whole frames: the small face after the large one is the small face alone (no legend: text
     # drawn the first time is rasterised, later pasted from a sprite, a level or so apart)
-    kw = dict(camera=cam, legend=False, markers=small[::50])
+    kw = dict(camera=cam, style=RenderStyle(legend=False), markers=small[::50])
     render_mesh(pts, face["tris"], **kw)
     after = render_mesh(small, face["tris"], **kw)
     raster_module._SCRATCH.buffers = {}

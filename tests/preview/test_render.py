@@ -6,8 +6,8 @@ import pytest
 
 from usdface.errors import MeshError, OptionError
 from usdface.mesh import FaceMesh, Region
-from usdface.preview import (Camera, colormap_lut, point_visibility, polygon_edges, render_buffers, render_face,
-                             render_mesh)
+from usdface.preview import (Camera, PointSet, RegionColors, RenderStyle, ScalarColors, VertexColors, colormap_lut,
+                             point_visibility, polygon_edges, render_buffers, render_face, render_mesh)
 from usdface.preview.colormap import CLAY
 
 BG = (255, 0, 255)  # a background colour no shading produces
@@ -36,7 +36,7 @@ def px(cam, p):
 def test_unlit_render_shows_vertex_colours_and_background():
     pts, _, tris = grid()
     cam = front_cam(pts)
-    img = render_mesh(pts, tris, camera=cam, shading="unlit", background=BG, supersample=1)
+    img = render_mesh(pts, tris, camera=cam, style=RenderStyle(shading="unlit", background=BG, supersample=1))
     assert img.shape == (64, 64, 3) and img.dtype == np.uint8
     clay_bgr = np.round(np.array(CLAY[::-1]) * 255)
     np.testing.assert_array_equal(img[32, 32], clay_bgr)
@@ -46,8 +46,9 @@ def test_unlit_render_shows_vertex_colours_and_background():
 def test_lit_render_is_shaded_and_back_faces_are_darker():
     pts, _, tris = grid()
     cam = front_cam(pts)
-    front = render_mesh(pts, tris, camera=cam, background=BG, supersample=1)
-    back = render_mesh(pts, tris[:, ::-1], camera=cam, background=BG, supersample=1)
+    style = RenderStyle(background=BG, supersample=1)
+    front = render_mesh(pts, tris, camera=cam, style=style)
+    back = render_mesh(pts, tris[:, ::-1], camera=cam, style=style)
     buf_f = render_buffers(pts, tris, cam)
     buf_b = render_buffers(pts, tris[:, ::-1], cam)
     assert buf_f.front.all() and not buf_b.front.any()
@@ -67,9 +68,9 @@ def test_supersampling_anti_aliases_edges():
     pts = np.array([[0, 0, 0], [1, 0.13, 0], [0.21, 1, 0]], dtype=float)
     tris = np.array([[0, 1, 2]])
     cam = front_cam(pts)
-    kw = dict(camera=cam, shading="unlit", background=(0, 0, 0), vertex_colors=np.ones((3, 3)))
-    hard = render_mesh(pts, tris, supersample=1, **kw)[..., 0]
-    soft = render_mesh(pts, tris, supersample=3, **kw)[..., 0]
+    kw = dict(camera=cam, colors=VertexColors(np.ones((3, 3))))
+    hard = render_mesh(pts, tris, style=RenderStyle(shading="unlit", background=(0, 0, 0), supersample=1), **kw)[..., 0]
+    soft = render_mesh(pts, tris, style=RenderStyle(shading="unlit", background=(0, 0, 0), supersample=3), **kw)[..., 0]
     assert set(np.unique(hard)) <= {0, 255}
     partial = (soft > 10) & (soft < 245)
     assert partial.sum() > 40  # the slanted edges have intermediate values
@@ -81,8 +82,8 @@ def test_scalars_map_min_and_max_to_colormap_ends_with_colour_bar():
     pts, _, tris = grid(nx=4, ny=2)
     s = np.where(pts[:, 0] < 0, -2.5, 4.0)
     cam = front_cam(pts, size=(200, 100))
-    img = render_mesh(pts, tris, camera=cam, scalars=s, scalar_label="dist (cm)", shading="unlit",
-                      background=BG, supersample=1)
+    img = render_mesh(pts, tris, camera=cam, colors=ScalarColors(s, label="dist (cm)"),
+                      style=RenderStyle(shading="unlit", background=BG, supersample=1))
     lut = np.round(colormap_lut("viridis") * 255).astype(int)
     np.testing.assert_array_equal(img[px(cam, [-0.85, 0, 0])], lut[0][::-1])
     np.testing.assert_array_equal(img[px(cam, [0.85, 0, 0])], lut[-1][::-1])
@@ -105,8 +106,8 @@ def test_scalars_are_interpolated_before_the_colour_lookup():
     pts, _, tris = grid(nx=2, ny=2)
     s = np.where(pts[:, 0] < 0, 0.0, 1.0)
     cam = front_cam(pts, size=(100, 100))
-    img = render_mesh(pts, tris, camera=cam, scalars=s, shading="unlit", supersample=1, background=BG,
-                      legend=False)
+    flat = RenderStyle(shading="unlit", supersample=1, background=BG, legend=False)
+    img = render_mesh(pts, tris, camera=cam, colors=ScalarColors(s), style=flat)
     lut = np.round(colormap_lut("viridis") * 255).astype(int)[:, ::-1]
     row = img[50, 15:85].astype(int)
     dist = np.abs(row[:, None, :] - lut[None]).max(axis=2).min(axis=1)
@@ -114,8 +115,7 @@ def test_scalars_are_interpolated_before_the_colour_lookup():
     # NaN scalars: grey where the NaN vertices dominate, and an n/a swatch
     s2 = s.copy()
     s2[pts[:, 0] > 0] = np.nan
-    img2 = render_mesh(pts, tris, camera=cam, scalars=s2, shading="unlit", supersample=1, background=BG,
-                       legend=False)
+    img2 = render_mesh(pts, tris, camera=cam, colors=ScalarColors(s2), style=flat)
     np.testing.assert_array_equal(img2[50, 80], [140, 140, 140])
 
 
@@ -123,8 +123,8 @@ def test_scalar_range_clips():
     pts, _, tris = grid(nx=4, ny=2)
     s = pts[:, 0] * 10
     cam = front_cam(pts, size=(200, 100))
-    img = render_mesh(pts, tris, camera=cam, scalars=s, scalar_range=(-100, -50), shading="unlit",
-                      supersample=1, colormap="magma")
+    img = render_mesh(pts, tris, camera=cam, colors=ScalarColors(s, range=(-100, -50), colormap="magma"),
+                      style=RenderStyle(shading="unlit", supersample=1))
     lut = np.round(colormap_lut("magma") * 255).astype(int)
     np.testing.assert_array_equal(img[px(cam, [0.5, 0, 0])], lut[-1][::-1])
 
@@ -134,23 +134,22 @@ def test_region_colours_dict_and_regions():
     mouth = np.flatnonzero(pts[:, 1] < -0.4)
     eye = np.flatnonzero(pts[:, 1] > 0.4)
     cam = front_cam(pts, size=(128, 128))
-    img = render_mesh(pts, tris, camera=cam, region_colors={"mouth": mouth, "leftEye": eye},
-                      shading="unlit", supersample=1, legend=False)
+    flat = RenderStyle(shading="unlit", supersample=1, legend=False)
+    img = render_mesh(pts, tris, camera=cam, colors=RegionColors({"mouth": mouth, "leftEye": eye}), style=flat)
     b, g, r = img[px(cam, [0, -0.9, 0])].astype(int)
     assert r > 180 and r > 2 * g  # mouth red-ish
     b, g, r = img[px(cam, [0, 0.9, 0])].astype(int)
     assert b > 200 and b > r + 80  # eye blue-ish
     mesh = FaceMesh(pts, np.full(len(quads), 4), quads.ravel())
     regs = [Region("lowerLip", "mouth", mouth), Region("rightEye", "eye", eye)]
-    img2 = render_face(mesh, regions=regs, camera=cam, shading="unlit", supersample=1, legend=False)
+    img2 = render_face(mesh, regions=regs, camera=cam, style=flat)
     np.testing.assert_array_equal(img2[px(cam, [0, -0.9, 0])], img[px(cam, [0, -0.9, 0])])
     # overrides and the legend
-    img3 = render_mesh(pts, tris, camera=cam, region_colors={"mouth": mouth}, region_palette={"mouth": (0, 255, 0)},
-                       shading="unlit", supersample=1)
+    green_mouth = RegionColors({"mouth": mouth}, palette={"mouth": (0, 255, 0)})
+    img3 = render_mesh(pts, tris, camera=cam, colors=green_mouth, style=RenderStyle(shading="unlit", supersample=1))
     np.testing.assert_array_equal(img3[px(cam, [0, -0.9, 0])], [0, 255, 0])
-    assert not np.array_equal(img3[100:, :60], render_mesh(pts, tris, camera=cam, region_colors={"mouth": mouth},
-                              region_palette={"mouth": (0, 255, 0)}, shading="unlit", supersample=1,
-                              legend=False)[100:, :60])
+    assert not np.array_equal(img3[100:, :60], render_mesh(pts, tris, camera=cam, colors=green_mouth,
+                                                           style=flat)[100:, :60])
 
 
 def test_hidden_marker_is_drawn_differently_from_a_visible_one():
@@ -163,9 +162,9 @@ def test_hidden_marker_is_drawn_differently_from_a_visible_one():
     in_view, vis = point_visibility(markers, buf, tolerance=0.02)
     assert in_view.all() and vis.tolist() == [True, False]
     color = (255, 200, 40)
-    img = render_mesh(pts, tris, camera=cam, markers=markers, marker_color=color, shading="unlit",
-                      supersample=1, legend=False)
-    plain = render_mesh(pts, tris, camera=cam, shading="unlit", supersample=1)
+    img = render_mesh(pts, tris, camera=cam, markers=PointSet(markers, color=color),
+                      style=RenderStyle(shading="unlit", supersample=1, legend=False))
+    plain = render_mesh(pts, tris, camera=cam, style=RenderStyle(shading="unlit", supersample=1))
     # visible: a filled dot of the marker colour
     np.testing.assert_array_equal(img[px(cam, visible)], color[::-1])
     # hidden: hollow (surface shows in the middle), outline dimmer than the marker colour
@@ -189,7 +188,7 @@ def test_marker_on_the_surface_at_grazing_angle_counts_as_visible():
 def test_nan_markers_are_skipped_and_counted_in_the_legend():
     pts, _, tris = grid()
     markers = np.array([[0, 0, 0.1], [np.nan, np.nan, np.nan]])
-    img = render_mesh(pts, tris, markers=markers, marker_labels=["A", "gap"])
+    img = render_mesh(pts, tris, markers=PointSet(markers, labels=["A", "gap"]))
     assert img.shape == (512, 512, 3)
 
 
@@ -198,9 +197,10 @@ def test_extra_points_and_links_and_labels_draw_something():
     cam = front_cam(pts, size=(128, 128))
     m = np.array([[-0.5, 0.5, 0.1], [0.5, -0.5, 0.1]])
     e = m + np.array([0.3, 0.0, 0.0])
-    base = render_mesh(pts, tris, camera=cam, markers=m, legend=False)
-    more = render_mesh(pts, tris, camera=cam, markers=m, extra_points=e, links=True, legend=False,
-                       extra_color=(0, 255, 0), marker_labels=["a", "b"], extra_labels=["a'", "b'"])
+    base = render_mesh(pts, tris, camera=cam, markers=m, style=RenderStyle(legend=False))
+    more = render_mesh(pts, tris, camera=cam, markers=PointSet(m, labels=["a", "b"]),
+                       extra=PointSet(e, labels=["a'", "b'"], color=(0, 255, 0)),
+                       style=RenderStyle(links=True, legend=False))
     assert np.abs(more[px(cam, e[0])].astype(int) - [0, 255, 0]).max() <= 8
     assert np.any(more != base)
 
@@ -210,7 +210,8 @@ def test_wireframe_draws_polygon_edges_not_triangle_diagonals_and_hides_occluded
     edges = polygon_edges(np.full(len(quads), 4), quads.ravel())
     assert len(edges) == 12  # 3x3 grid of quads: 12 edges, no diagonals
     cam = front_cam(pts, size=(128, 128))
-    kw = dict(camera=cam, shading="unlit", supersample=1, background=BG, wire_color=(0, 0, 0), wire_alpha=1.0)
+    kw = dict(camera=cam, style=RenderStyle(shading="unlit", supersample=1, background=BG, wire_color=(0, 0, 0),
+                                            wire_alpha=1.0))
     img = render_mesh(pts, tris, edges=edges, **kw)
     dark = np.all(img == 0, axis=-1)
     assert dark[px(cam, [0.0, 0.5, 0])]  # middle vertical polygon edge
@@ -258,8 +259,8 @@ def test_perspective_render_differs_from_orthographic():
     pts, _, tris = grid()
     box = np.vstack([pts, pts + [0, 0, -2]])
     t = np.vstack([tris, tris[:, ::-1] + len(pts)])
-    o = render_mesh(box, t, view="left", projection="orthographic", size=(96, 96))
-    p = render_mesh(box, t, view="left", projection="perspective", size=(96, 96))
+    o = render_mesh(box, t, style=RenderStyle(view="left", projection="orthographic", size=(96, 96)))
+    p = render_mesh(box, t, style=RenderStyle(view="left", projection="perspective", size=(96, 96)))
     assert o.shape == p.shape and np.any(o != p)
 
 
@@ -267,15 +268,15 @@ def test_inputs_are_not_modified():
     pts, _, tris = grid()
     markers = np.array([[0.0, 0.0, 0.1]])
     copies = [a.copy() for a in (pts, tris, markers)]
-    render_mesh(pts, tris, markers=markers, scalars=pts[:, 0], edges=np.array([[0, 1]]))
+    render_mesh(pts, tris, markers=markers, colors=ScalarColors(pts[:, 0]), edges=np.array([[0, 1]]))
     for a, b in zip((pts, tris, markers), copies):
         np.testing.assert_array_equal(a, b)
 
 
 def test_errors_name_the_problem():
     pts, _, tris = grid()
-    with pytest.raises(OptionError, match="only one of"):
-        render_mesh(pts, tris, scalars=pts[:, 0], region_colors={"a": [0]})
+    with pytest.raises(OptionError, match="colors must be a RegionColors, ScalarColors or VertexColors"):
+        render_mesh(pts, tris, colors={"a": [0]})
     with pytest.raises(MeshError, match="triangle vertex indices"):
         render_mesh(pts, tris + 100)
     with pytest.raises(MeshError, match=r"shape \(N>0, 3\)"):
@@ -283,18 +284,22 @@ def test_errors_name_the_problem():
     with pytest.raises(MeshError, match="NaN"):
         render_mesh(np.full_like(pts, np.nan), tris)
     with pytest.raises(OptionError, match="2 marker labels for 1 marker"):
-        render_mesh(pts, tris, markers=[[0, 0, 0]], marker_labels=["a", "b"])
+        render_mesh(pts, tris, markers=PointSet([[0, 0, 0]], labels=["a", "b"]))
     with pytest.raises(MeshError, match="region 'mouth'"):
-        render_mesh(pts, tris, region_colors={"mouth": [0, 999]})
+        render_mesh(pts, tris, colors=RegionColors({"mouth": [0, 999]}))
     with pytest.raises(MeshError, match="edges"):
         render_mesh(pts, tris, edges=np.array([[0, 99]]))
     with pytest.raises(OptionError, match="scalars"):
-        render_mesh(pts, tris, scalars=np.zeros(3))
+        render_mesh(pts, tris, colors=ScalarColors(np.zeros(3)))
     with pytest.raises(OptionError, match="shading"):
-        render_mesh(pts, tris, shading="toon")
+        RenderStyle(shading="toon")
     with pytest.raises(OptionError, match="marker_color"):
-        render_mesh(pts, tris, marker_color=(300, 0, 0))
+        render_mesh(pts, tris, markers=PointSet([[0, 0, 0]], color=(300, 0, 0)))
     with pytest.raises(OptionError, match="links"):
-        render_mesh(pts, tris, markers=[[0, 0, 0]], extra_points=[[0, 0, 0], [1, 1, 1]], links=True)
+        render_mesh(pts, tris, markers=[[0, 0, 0]], extra=[[0, 0, 0], [1, 1, 1]], style=RenderStyle(links=True))
     with pytest.raises(OptionError, match="supersample"):
-        render_mesh(pts, tris, supersample=0)
+        RenderStyle(supersample=0)
+    with pytest.raises(OptionError, match="wire_color"):
+        RenderStyle(wire_color=(0, 0))
+    with pytest.raises(OptionError, match="camera must be a usdface.preview.Camera"):
+        render_mesh(pts, tris, camera="front")

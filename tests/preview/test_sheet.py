@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from usdface.errors import OptionError
-from usdface.preview import Camera, contact_sheet, render_mesh, render_sequence
+from usdface.preview import Camera, RenderStyle, ScalarColors, SheetLayout, contact_sheet, render_mesh, render_sequence
 
 
 def cells(n, h=40, w=60):
@@ -54,12 +54,13 @@ def test_sequence_uses_one_camera_so_motion_shows():
     frames = np.stack([tri + [dx, 0, 0] for dx in (0.0, 1.0, 2.0)])
     t = np.array([[0, 1, 2]])
     cell = (80, 80)
-    sheet = render_sequence(frames, t, cell_size=cell, columns=3, background=(0, 0, 0), supersample=1,
-                            shading="unlit", caption="f{}", frame_numbers=[1, 2, 3])
+    style = RenderStyle(size=cell, background=(0, 0, 0), supersample=1, shading="unlit")
+    sheet = render_sequence(frames, t, style=style, layout=SheetLayout(columns=3, caption="f{}"),
+                            frame_numbers=[1, 2, 3])
     cam = Camera.fit(frames, size=cell)
     for k in range(3):
         x = 6 + k * (80 + 6)
-        expected = render_mesh(frames[k], t, camera=cam, background=(0, 0, 0), supersample=1, shading="unlit")
+        expected = render_mesh(frames[k], t, camera=cam, style=style)
         np.testing.assert_array_equal(sheet[6:86, x:x + 80], expected)
     cols = [np.flatnonzero(sheet[6:86, 6 + k * 86:86 + k * 86].any(axis=(0, 2))) for k in range(3)]
     assert cols[0].mean() < cols[1].mean() < cols[2].mean()
@@ -70,8 +71,8 @@ def test_sequence_scalars_share_one_range_and_markers_per_frame():
     frames = np.stack([tri, tri])
     scal = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
     markers = np.array([[[0.2, 0.2, 0.1]], [[np.nan, np.nan, np.nan]]])
-    sheet = render_sequence(frames, np.array([[0, 1, 2]]), scalars=scal, markers=markers, cell_size=(64, 64),
-                            shading="unlit", supersample=1, legend=False)
+    sheet = render_sequence(frames, np.array([[0, 1, 2]]), colors=ScalarColors(scal), markers=markers,
+                            style=RenderStyle(size=(64, 64), shading="unlit", supersample=1, legend=False))
     a = sheet[6:70, 6:70].reshape(-1, 3)
     b = sheet[6:70, 76:140].reshape(-1, 3)
     # frame 0 shows the low end of the shared range, frame 1 the high end

@@ -169,3 +169,58 @@ def test_preview_reference_with_another_mesh_is_refused(shot, tmp_path, sample_a
     err = capsys.readouterr().err
     assert code == 2 and "--reference" in err and "2020" in err, err
     assert not out.exists()
+
+
+def test_one_reader_of_the_shot_checked_against_its_raw_attributes(shot):
+    """The evaluator also reads what else the shot shows (issue 18: one stage reader): markers,
+    head motion, binding and bound points, regions, hybrid weight, triangles; each checked here
+    against the shot's raw attributes read with pxr alone."""
+    path = shot / "shot.usda"
+    ev = FaceEvaluator.open(path)
+    stage = Usd.Stage.Open(str(path))
+    times = [0, 120, 299]
+    marker_prim = next(p for p in stage.Traverse() if p.IsA(UsdGeom.Points))
+    assert ev.marker_names == list(marker_prim.GetAttribute("usdface:markerSet:names").Get())
+    markers = ev.markers(times)
+    head = ev.head_motion(times)
+    face = stage.GetDefaultPrim()
+    for i, t in enumerate(times):
+        raw = np.asarray(marker_prim.GetAttribute("points").Get(t), dtype=np.float64)
+        m = _col(UsdGeom.Xformable(marker_prim).ComputeLocalToWorldTransform(Usd.TimeCode(t)))
+        want = raw @ m[:3, :3].T + m[:3, 3]
+        want[~np.asarray(marker_prim.GetAttribute("primvars:usdface:valid").Get(t), dtype=bool)] = np.nan
+        np.testing.assert_allclose(markers[i], want, atol=1e-9)
+        # the head motion is /Face's own transform (row vectors, as authored); world = stabilised @ H
+        np.testing.assert_array_equal(head[i], np.asarray(UsdGeom.Xformable(face).GetLocalTransformation(t)))
+        stable = ev.markers([t], stabilized=True)[0]
+        np.testing.assert_allclose(stable @ head[i][:3, :3] + head[i][3, :3], want, atol=1e-6)
+    assert np.abs(head[-1][3, :3]).max() > 0.05  # the head moves in this take
+    # bound points: barycentric combinations of the bound triangles' vertices, on any pose
+    geom = stage.GetPrimAtPath(ev.mesh_path)
+    tv = np.asarray(geom.GetAttribute("usdface:binding:triangleVertexIndices").Get())
+    bc = np.asarray(geom.GetAttribute("usdface:binding:barycentrics").Get(), dtype=np.float64)
+    pts = ev.points_range(times)
+    np.testing.assert_allclose(ev.bound_points(pts), (pts[:, tv] * bc[None, :, :, None]).sum(axis=2), atol=1e-9)
+    np.testing.assert_allclose(ev.bound_points(pts[1]), (pts[1][tv] * bc[:, :, None]).sum(axis=1), atol=1e-9)
+    # regions, hybrid weight, triangles
+    schemas = [s.split(":", 1)[1] for s in geom.GetAppliedSchemas() if s.startswith("FaceRegionAPI:")]
+    assert [r.name for r in ev.regions] == schemas and schemas
+    np.testing.assert_array_equal(ev.hybrid_weight, np.asarray(geom.GetAttribute(
+        "primvars:usdface:hybridWeight").Get(), dtype=np.float64))
+    counts = np.asarray(geom.GetAttribute("faceVertexCounts").Get())
+    assert ev.triangles.shape == (int((counts - 2).sum()), 3)
+
+
+def test_playback_and_preview_readers_are_views_of_the_one_reader(shot):
+    """ShotReader (playblast, report) and read_scene_frame (preview) give the evaluator's data."""
+    from usdface.usd.playback import ShotReader
+    from usdface.usd.scene import read_scene_frame
+
+    reader = ShotReader.open(shot / "shot.usda")
+    ev = reader.evaluator
+    scene = read_scene_frame(shot / "shot.usda", time=120, evaluator=ev)
+    np.testing.assert_array_equal(scene.mesh.points, reader.face_points([120])[0])
+    np.testing.assert_array_equal(scene.markers, reader.markers([120])[0])
+    np.testing.assert_array_equal(scene.bound_points, reader.bound_points(reader.face_points([120]))[0])
+    assert scene.regions is reader.regions is ev.regions and scene.marker_names == reader.marker_names
+    np.testing.assert_array_equal(reader.triangles, scene.mesh.triangles())

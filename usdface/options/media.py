@@ -99,6 +99,23 @@ class PlayblastOptions(Options):
         if self.compare is not None and self.video is not None:
             raise OptionError("--compare and --video: one panel on the right, give one of them")
 
+    def style(self):
+        """How each panel looks (:class:`usdface.playblast.panel.PanelStyle`)."""
+        from ..playblast.panel import PanelStyle
+
+        return PanelStyle(color=self.color, markers=self.markers, bound=self.bound, labels=self.labels,
+                          legend=self.legend, burnin=self.burnin, supersample=self.supersample, view=self.view,
+                          projection=self.projection, turntable_period=self.turntable_period)
+
+    def parameters(self):
+        """What the playblast shows and how (:class:`usdface.playblast.plan.PlayblastParameters`);
+        the encoding options (workers, parallel, crf, preset) stay with the command."""
+        from ..playblast.plan import PlayblastParameters
+
+        return PlayblastParameters(style=self.style(), size=self.size, frame_range=self.frame_range,
+                                   stabilized=self.stabilized, compare=self.compare, reference=self.reference,
+                                   video=self.video)
+
 
 def frames_value(value, flag):
     """One or more time codes (``--frames 0 120 441``)."""

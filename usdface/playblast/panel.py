@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import OptionError
-from ..preview import Camera, fit_camera, render_mesh, view_yaw
+from ..preview import Camera, PointSet, RegionColors, RenderStyle, ScalarColors, fit_camera, render_mesh, view_yaw
 from ..preview.burnin import burn_in, placeholder, timecode
 from ..preview.colormap import COLORS  # one list of surface colours: preview, playblast, the options
 
@@ -124,6 +124,7 @@ class ShotPanel:
         lines = 2 if st.burnin else 0
         colorbar = st.legend and st.color in ("displacement", "error", "hybrid-weight")
         self._fit_kwargs = dict(size=self.size, projection=st.projection, colorbar=colorbar, title_lines=lines)
+        self._render_style = RenderStyle(legend=st.legend, supersample=st.supersample)
         sample = np.asarray(self.frame_points, dtype=np.float64).reshape(-1, 3)
         self._sample = sample[np.isfinite(sample).all(axis=1)]
         self._turntable = st.view == "turntable"
@@ -170,24 +171,22 @@ class ShotPanel:
         """The panel at ``time`` (BGR uint8, ``size``), with ``note`` added to the burn-in;
         ``stabilized``: the points without head motion, for the colours (default: ``points``)."""
         st = self.style
-        kwargs = {}
         c = st.color
+        colors = None
         if c == "regions":
-            kwargs["region_colors"] = self.regions or None
+            colors = RegionColors(self.regions) if self.regions else None
         elif c in ("displacement", "error", "hybrid-weight"):
             label = {"displacement": f"displacement ({self.units})", "error": f"error ({self.units})",
                      "hybrid-weight": "hybrid weight w"}[c]
             rng = (0.0, 1.0) if c == "hybrid-weight" else self.scalar_range
-            kwargs.update(scalars=self.scalars(points if stabilized is None else stabilized, reference),
-                          scalar_range=rng, scalar_label=label)
+            colors = ScalarColors(self.scalars(points if stabilized is None else stabilized, reference), range=rng,
+                                  label=label)
+        shown_markers = None
         if st.markers and markers is not None:
-            kwargs["markers"] = markers
-            if st.labels and self.marker_names:
-                kwargs["marker_labels"] = self.marker_names
-        if st.bound and bound is not None:
-            kwargs.update(extra_points=bound, extra_name="bound points")
-        img = render_mesh(points, self.triangles, camera=self.camera_at(time), legend=st.legend,
-                          supersample=st.supersample, **kwargs)
+            shown_markers = PointSet(markers, labels=self.marker_names if st.labels and self.marker_names else None)
+        shown_bound = PointSet(bound, name="bound points") if st.bound and bound is not None else None
+        img = render_mesh(points, self.triangles, camera=self.camera_at(time), style=self._render_style, colors=colors,
+                          markers=shown_markers, extra=shown_bound)
         if st.burnin:
             f = int(round(time))
             burn_in(img, [self.name, self.method], [f"frame {f}", f"{timecode(f, self.rate)}  {self.rate:g} fps"

@@ -8,6 +8,7 @@ memory flat on long takes.
 from __future__ import annotations
 
 import os
+import signal
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -80,6 +81,10 @@ _WORKER_RENDER = None
 def _init_process(render):
     global _WORKER_RENDER
     _WORKER_RENDER = render
+    # a worker inherits the command's handlers (SIGTERM raises Interrupted, for clean-up in the
+    # main process); the pool stops its workers with SIGTERM, which must end them quietly
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's to handle
     from ..preview.render import _compiled
 
     _compiled()  # load the compiled kernels once per process
@@ -104,10 +109,18 @@ def render_in_order(jobs, render, *, workers: int = 1, mode: str = "threads", wi
     window : int, optional
         Frames in flight (default ``3 * workers``).
     """
+    it = iter(jobs)
     if workers <= 1:
-        for job in jobs:
+        for job in it:
             yield render(job)
         return
+    # the first frame in this thread, before any worker starts: what it fills (the region colours'
+    # bands, measured on the first pose drawn; text sprites) is then the same for every frame and
+    # every run, as with one worker, instead of depending on which worker got there first
+    first = next(it, None)
+    if first is None:
+        return
+    yield render(first)
     window = window or 3 * workers
     if mode == "processes":
         import multiprocessing as mp
@@ -115,14 +128,13 @@ def render_in_order(jobs, render, *, workers: int = 1, mode: str = "threads", wi
         ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
         pool = ctx.Pool(workers, initializer=_init_process, initargs=(render,))
         try:
-            yield from pool.imap(_render_in_process, jobs, chunksize=2)
+            yield from pool.imap(_render_in_process, it, chunksize=2)
         finally:
             pool.terminate()
             pool.join()
         return
     with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="usdface-render") as ex:
         pending = deque()
-        it = iter(jobs)
         for job in it:
             pending.append(ex.submit(render, job))
             if len(pending) >= window:

@@ -1,6 +1,7 @@
 """Which time code of each shot, and which frame of a source video, every playblast frame shows.
 
-Pure functions on numbers (no USD, no images).
+Pure functions on numbers (no USD, no images), and :func:`video_timing`, which reads what the run
+recorded in the ``summary.json`` beside the shot.
 
 - A playblast has one frame per time sample of its (first) shot, at that shot's rate, over
   ``--range FIRST LAST`` (time codes, inclusive) or the whole shot.
@@ -14,13 +15,16 @@ Pure functions on numbers (no USD, no images).
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import OptionError
 
-__all__ = ["Alignment", "VideoTiming", "align_shots", "shot_times", "video_frame_indices"]
+__all__ = ["Alignment", "VideoTiming", "align_shots", "shot_times", "summary_beside", "video_frame_indices",
+           "video_timing"]
 
 
 def shot_times(start: int, end: int, frame_range=None, *, what: str = "shot") -> np.ndarray:
@@ -125,3 +129,43 @@ def video_frame_indices(times: np.ndarray, timing: VideoTiming, *, video_rate: f
         index = np.floor(pos + 0.5 + 1e-9).astype(np.int64)
     present = (index >= 0) & (index < int(video_frames))
     return index, present
+
+
+def summary_beside(shot_path) -> dict | None:
+    """The run's ``summary.json`` beside a shot (None when missing or unreadable)."""
+    p = Path(shot_path).parent / "summary.json"
+    if not p.is_file():
+        return None
+    try:
+        return json.loads(p.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def video_timing(shot_path, *, shot_start: int, rate: float) -> VideoTiming:
+    """How the shot's frames map to its source video, from the run's summary.json beside the shot.
+
+    The run records ``steps.import-capture.reports.timing`` (trim start, source rate, resampled
+    rate, first time code); older shots fall back to the options in its provenance and the
+    tracker's rate. Without a summary the identity mapping is assumed (``recorded=False``).
+    """
+    summary = summary_beside(Path(shot_path))
+    if summary is None:
+        return VideoTiming(trim_start=0, source_rate=None, rate=rate, shot_start=shot_start, recorded=False)
+    cap = summary.get("steps", {}).get("import-capture", {})
+    rec = cap.get("reports", {}).get("timing")
+    if rec:
+        return VideoTiming(trim_start=int(rec.get("trimStart") or 0), source_rate=rec.get("sourceRate"),
+                           rate=rec.get("rate") or rate, shot_start=int(rec.get("startTimeCode", shot_start)))
+    options = summary.get("provenance", {}).get("options", {})
+    if isinstance(options, str):
+        try:
+            options = json.loads(options)
+        except ValueError:
+            options = {}
+    trim = options.get("trim") or [0, None]
+    source_rate = summary.get("steps", {}).get("track", {}).get("rate")
+    if source_rate is None and not options.get("resample"):
+        source_rate = cap.get("rate", rate)
+    return VideoTiming(trim_start=int(trim[0] or 0), source_rate=source_rate, rate=cap.get("rate", rate),
+                       shot_start=int(cap.get("startTimeCode", shot_start)), recorded=source_rate is not None)

@@ -25,7 +25,7 @@ How a frame is made
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,9 +40,8 @@ from .png import encode_png, write_png  # noqa: F401  (re-exported)
 from .raster import (Buffers, _check_mesh, _neighbourhood_max, point_visibility, rasterize,  # noqa: F401
                      render_buffers)  # (Buffers, point_visibility, rasterize: re-exported)
 from .shading import BACKGROUND, _background, _shade, _wire_mask, vertex_normals  # noqa: F401
-
-#: shading modes of :func:`render_mesh`
-SHADINGS = ("smooth", "flat", "unlit")
+from .style import (EXTRA_COLOR, MARKER_COLOR, SHADINGS, PointSet, RegionColors, RenderStyle,  # noqa: F401
+                    ScalarColors, VertexColors)  # (SHADINGS: re-exported)
 
 
 # ================================================================================================
@@ -131,18 +130,8 @@ def fit_camera(points, *, view: str | float = "front", size=(512, 512), projecti
 
 # ================================================================================================
 def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | None = None,
-                view: str | float = "front", size=(512, 512), projection: str = "orthographic",
-                pitch: float = 0.0, vertex_colors: np.ndarray | None = None, region_colors=None, region_palette=None,
-                scalars: np.ndarray | None = None, scalar_range: tuple[float, float] | None = None,
-                scalar_label: str = "", colormap: str = "viridis",
-                markers: np.ndarray | None = None, marker_labels=None, marker_color=(255, 200, 40),
-                marker_name: str = "markers",
-                extra_points: np.ndarray | None = None, extra_labels=None, extra_color=(40, 230, 255),
-                extra_name: str = "points", links: bool = False,
-                edges: np.ndarray | None = None, wire_color=(18, 18, 22), wire_alpha: float = 0.5,
-                title: str = "", shading: str = "smooth", background=None, supersample: int = 2,
-                legend: bool = True, occlusion_tolerance: float | None = None,
-                marker_radius: float | None = None, label_info: dict | None = None) -> np.ndarray:
+                style: RenderStyle | None = None, colors=None, markers=None, extra=None,
+                edges: np.ndarray | None = None, title: str = "", label_info: dict | None = None) -> np.ndarray:
     """Render a preview image of a triangle mesh.
 
     Parameters
@@ -152,62 +141,24 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     triangles : ndarray, shape (T, 3), int
         Triangles (e.g. ``FaceMesh.triangles()``); counter-clockwise = front face.
     camera : Camera, optional
-        Fixed camera (e.g. shared by every frame of a sequence); its size wins over ``size``.
-        Default: :func:`fit_camera` of the points, markers and extra points with ``view``
-        (name or yaw in degrees), ``size`` (width, height), ``projection`` and ``pitch`` (degrees,
-        positive from above), leaving room for the title and colour bar.
-    vertex_colors : ndarray, shape (N, 3), optional
-        RGB per vertex, floats in [0, 1] or uint8.
-    region_colors : dict {name: vertex indices or Region} or list of Region, optional
-        Vertices of each region get the fixed palette colour of the region (mouth red-ish, eyes
-        blue-ish, outer border grey, others distinct; see :func:`usdface.preview.colormap.region_palette`);
-        later regions paint over earlier ones; other vertices are clay. Loop regions (outer border,
-        mouth, eyes: one vertex wide) also tint two rings of vertices around them (weights
-        :data:`BAND_WEIGHTS`) so they show at any size. A legend lists them.
-    region_palette : dict {name: (r, g, b)}, optional
-        Overrides of region colours (0..255).
-    scalars : ndarray, shape (N,), optional
-        A value per vertex shown through ``colormap`` with a colour bar; NaN shows grey.
-    scalar_range : (lo, hi), optional
-        Values at the ends of the colour map (default: min/max; symmetric for ``coolwarm``).
-    scalar_label : str
-        Title of the colour bar (quantity and unit, e.g. ``"displacement (cm)"``).
-    colormap : str
-        ``viridis`` (default), ``magma`` or ``coolwarm`` (diverging).
-    markers : ndarray, shape (M, 3), optional
-        Drawn as dots: filled when visible, hollow and dimmer when behind the surface. NaN rows
-        (gaps) are skipped.
-    marker_labels : sequence of M str, optional
-    marker_color : (r, g, b)
-    marker_name : str
-        Legend text of the markers.
-    extra_points, extra_labels, extra_color, extra_name :
+        Fixed camera (e.g. shared by every frame of a sequence); its size wins over the style's.
+        Default: :func:`fit_camera` of the points, markers and extra points with the style's
+        ``view``, ``size``, ``projection`` and ``pitch``, leaving room for the title and colour bar.
+    style : RenderStyle, optional
+        How the picture looks (:class:`usdface.preview.RenderStyle`: shading, background,
+        supersampling, legend, wireframe colour, glyph size, links...).
+    colors : RegionColors, ScalarColors or VertexColors, optional
+        What colours the surface (default: clay): regions in their palette colours with a legend,
+        a value per vertex through a colour map with a colour bar, or given RGB per vertex.
+    markers : PointSet or ndarray (M, 3), optional
+        Drawn as dots (:class:`usdface.preview.PointSet`: points, labels, colour, legend name).
+    extra : PointSet or ndarray (K, 3), optional
         A second point set (e.g. bound points vs capture markers), drawn as diamonds.
-    links : bool
-        Draw a thin line from each marker to the extra point of the same index (needs M == K).
     edges : ndarray, shape (E, 2), int, optional
         Wireframe overlay: the edges of the original polygons (see :func:`polygon_edges`),
         hidden parts removed.
-    wire_color, wire_alpha :
-        Wireframe colour (r, g, b) and opacity.
     title : str
         Text at the top left (may have several lines).
-    shading : str
-        ``"smooth"`` (Lambert per pixel with interpolated vertex normals), ``"flat"`` (one normal
-        per triangle) or ``"unlit"`` (the vertex colours exactly, e.g. to read a scalar map).
-    background : (r, g, b), optional
-        Solid background; default a dark vertical gradient.
-    supersample : int
-        Render at this multiple of the size and average down (anti-aliasing); 1 = off.
-    legend : bool
-        Draw the region and marker legends and the colour bar.
-    occlusion_tolerance : float, optional
-        World units a marker may lie behind the surface and still count as visible; default 1%
-        of the mesh's bounding-box diagonal.
-    marker_radius : float, optional
-        Dot radius in pixels; default scales with the image (4 px at 512, at least 3.5) and
-        shrinks to 0.35 of the median spacing of the points on screen (at least 1.5 px), so
-        glyphs never swamp a small picture.
     label_info : dict, optional
         Filled with the label layout (``boxes`` (K, 4) x0 y0 x1 y1, ``placed``, ``leader``,
         ``anchors``, ``texts``, ``reserved`` boxes of glyphs, legends, colour bar and title,
@@ -220,129 +171,200 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
     ndarray, shape (H, W, 3), uint8
         The image, BGR channel order (ready for :func:`write_png` / ``cv2.imwrite``).
     """
-    cv2 = _cv2()
+    style = RenderStyle() if style is None else style
     points, tris = _check_mesh(points, triangles)
     n = points.shape[0]
-    markers = _points3(markers, "markers")
-    extra = _points3(extra_points, "extra_points")
-    marker_labels = _labels(marker_labels, 0 if markers is None else markers.shape[0], "marker")
-    extra_labels = _labels(extra_labels, 0 if extra is None else extra.shape[0], "extra point")
-    if shading not in SHADINGS:
-        raise OptionError(f"preview: shading must be one of {', '.join(SHADINGS)}; got {shading!r}")
-    ss = int(supersample)
-    if ss < 1 or ss > 8:
-        raise OptionError(f"preview: supersample must be 1..8; got {supersample}")
-    given = [k for k, v in (("vertex_colors", vertex_colors), ("region_colors", region_colors),
-                            ("scalars", scalars)) if v is not None]
-    if len(given) > 1:
-        raise OptionError(f"preview: give only one of vertex_colors, region_colors, scalars; got {', '.join(given)}")
-    if links and (markers is None or extra is None or markers.shape[0] != extra.shape[0]):
-        raise OptionError("preview: links=True needs markers and extra_points of the same length; got "
-                          f"{None if markers is None else markers.shape[0]} and {None if extra is None else extra.shape[0]}")
-    if edges is not None:
-        e = np.asarray(edges)
-        if e.ndim != 2 or e.shape[1] != 2 or (e.size and (not np.issubdtype(e.dtype, np.integer)
-                                                           or e.min() < 0 or e.max() >= n)):
-            raise MeshError(f"preview: edges must be integer pairs (E, 2) of vertex indices in 0..{n - 1}")
-        edges = e.astype(np.int64)
-    marker_rgb = _rgb(marker_color, "marker_color")
-    extra_rgb = _rgb(extra_color, "extra_color")
-    wire_rgb = _rgb(wire_color, "wire_color")
+    sets = _point_sets(markers, extra, style)
+    edges = _checked_edges(edges, n)
     if camera is None:
-        camera = fit_camera([points, markers, extra], view=view, size=size, projection=projection, pitch=pitch,
-                            colorbar=scalars is not None and legend, title_lines=len(str(title).splitlines()))
+        by_shape = {ps.shape: ps.points for ps in sets}  # framed in the order: mesh, markers, extra
+        camera = fit_camera([points, by_shape.get("circle"), by_shape.get("diamond")], view=style.view, size=style.size,
+                            projection=style.projection, pitch=style.pitch,
+                            colorbar=isinstance(colors, ScalarColors) and style.legend,
+                            title_lines=len(str(title).splitlines()))
     elif not isinstance(camera, Camera):
         raise OptionError(f"preview: camera must be a usdface.preview.Camera; got {type(camera).__name__}")
+    diag = float(np.linalg.norm([np.ptp(points[:, k]) for k in range(3)])) or 1.0  # per column: fast
+    surface = _surface_colors(points, tris, colors, diag)
+    out, buf, ref = _draw_surface(points, tris, camera, style, surface, edges, diag)
+    tol = 0.01 * diag if style.occlusion_tolerance is None else float(style.occlusion_tolerance)
     w, h = camera.size
     s = _overlay_scale((w, h))  # overlay scale (text, dots); not below half size to stay legible
-    diag = float(np.linalg.norm([np.ptp(points[:, k]) for k in range(3)])) or 1.0  # per column: fast
-    tol = 0.01 * diag if occlusion_tolerance is None else float(occlusion_tolerance)
+    drawn = _draw_point_sets(out, camera, buf, ref, sets, style, tolerance=tol, scale=s)
+    reserved = list(drawn.glyph_boxes) + _draw_legends(out, surface, drawn.legend, style, title, s)
+    _draw_labels(out, drawn, reserved, s, label_info)
+    return out
 
-    # --- per-vertex colours ---------------------------------------------------------------------
-    legend_entries = []
-    lut = lo = hi = scalar_t = None
-    has_nan = False
-    colors = np.broadcast_to(np.asarray(CLAY), (n, 3)).copy()
-    if vertex_colors is not None:
-        vc = np.asarray(vertex_colors)
+
+# -- the parts of a picture -----------------------------------------------------------------------
+
+@dataclass
+class _SetToDraw:
+    """A point set ready to draw: checked points (M, 3) and labels, colour, legend name, glyph."""
+
+    points: np.ndarray
+    labels: list | None
+    rgb: tuple
+    name: str
+    shape: str
+
+
+def _point_sets(markers, extra, style: RenderStyle) -> list:
+    """The point sets to draw, diamonds (``extra``) under dots (``markers``), checked."""
+    markers, extra = PointSet.of(markers), PointSet.of(extra)
+    mk = None if markers is None else _points3(markers.points, "markers")
+    ex = None if extra is None else _points3(extra.points, "extra_points")
+    mk_labels = _labels(markers.labels if markers is not None else None, 0 if mk is None else mk.shape[0], "marker")
+    ex_labels = _labels(extra.labels if extra is not None else None, 0 if ex is None else ex.shape[0], "extra point")
+    if style.links and (mk is None or ex is None or mk.shape[0] != ex.shape[0]):
+        raise OptionError("preview: links=True needs markers and extra_points of the same length; got "
+                          f"{None if mk is None else mk.shape[0]} and {None if ex is None else ex.shape[0]}")
+    sets = []
+    if ex is not None:
+        sets.append(_SetToDraw(ex, ex_labels, _rgb(extra.color or EXTRA_COLOR, "extra_color"),
+                               extra.name or "points", "diamond"))
+    if mk is not None:
+        sets.append(_SetToDraw(mk, mk_labels, _rgb(markers.color or MARKER_COLOR, "marker_color"),
+                               markers.name or "markers", "circle"))
+    return sets
+
+
+def _checked_edges(edges, n: int) -> np.ndarray | None:
+    if edges is None:
+        return None
+    e = np.asarray(edges)
+    if e.ndim != 2 or e.shape[1] != 2 or (e.size and (not np.issubdtype(e.dtype, np.integer)
+                                                       or e.min() < 0 or e.max() >= n)):
+        raise MeshError(f"preview: edges must be integer pairs (E, 2) of vertex indices in 0..{n - 1}")
+    return e.astype(np.int64)
+
+
+@dataclass
+class _Surface:
+    """Per-vertex colours (N, 3) float64 0..1, and what the legends need: region entries, or the
+    colour map (``lut``), its range and the normalised scalars (``t``, NaN where missing)."""
+
+    colors: np.ndarray
+    legend: list
+    lut: np.ndarray | None = None
+    lo: float | None = None
+    hi: float | None = None
+    t: np.ndarray | None = None
+    has_nan: bool = False
+    label: str = ""
+
+
+def _surface_colors(points, tris, colors, diag: float) -> _Surface:
+    """The surface's colours from :func:`render_mesh`'s ``colors`` (clay without)."""
+    n = points.shape[0]
+    clay = np.broadcast_to(np.asarray(CLAY), (n, 3)).copy()
+    if colors is None:
+        return _Surface(clay, [])
+    if isinstance(colors, VertexColors):
+        vc = np.asarray(colors.rgb)
         if vc.ndim != 2 or vc.shape[0] != n or vc.shape[1] not in (3, 4):
             raise OptionError(f"preview: vertex_colors must have shape ({n}, 3); got {vc.shape}")
         vc = vc[:, :3].astype(np.float64) / (255.0 if vc.dtype == np.uint8 else 1.0)
-        colors = np.clip(np.nan_to_num(vc, nan=0.5), 0.0, 1.0)
-    elif region_colors is not None:
-        colors, legend_entries = _region_colors(points, tris, region_colors, region_palette, diag)
-    elif scalars is not None:
-        sc = np.asarray(scalars, dtype=np.float64).ravel()
+        return _Surface(np.clip(np.nan_to_num(vc, nan=0.5), 0.0, 1.0), [])
+    if isinstance(colors, RegionColors):
+        return _Surface(*_region_colors(points, tris, colors.regions, colors.palette, diag))
+    if isinstance(colors, ScalarColors):
+        sc = np.asarray(colors.values, dtype=np.float64).ravel()
         if sc.size != n:
             raise OptionError(f"preview: scalars must have one value per vertex ({n}); got {sc.size}")
-        lo, hi = _scalar_range(sc, colormap=colormap) if scalar_range is None else map(float, scalar_range)
-        colors = apply_colormap(sc, vrange=(lo, hi), colormap=colormap)  # also checks the range
-        lut = colormap_lut(colormap)
+        cmap = colors.colormap
+        lo, hi = _scalar_range(sc, colormap=cmap) if colors.range is None else map(float, colors.range)
+        rgb = apply_colormap(sc, vrange=(lo, hi), colormap=cmap)  # also checks the range
         finite = np.isfinite(sc)
-        has_nan = not bool(finite.all())
         with np.errstate(invalid="ignore"):
-            scalar_t = np.where(finite, np.clip((sc - lo) / ((hi - lo) or 1.0), 0.0, 1.0), np.nan)
+            t = np.where(finite, np.clip((sc - lo) / ((hi - lo) or 1.0), 0.0, 1.0), np.nan)
+        return _Surface(rgb, [], lut=colormap_lut(cmap), lo=lo, hi=hi, t=t, has_nan=not bool(finite.all()),
+                        label=colors.label)
+    raise OptionError("preview: colors must be a RegionColors, ScalarColors or VertexColors (usdface.preview); got "
+                      f"{type(colors).__name__}")
 
-    # --- rasterise, shade, wireframe (at the supersampled resolution) ---------------------------
+
+def _draw_surface(points, tris, camera: Camera, style: RenderStyle, surface: _Surface, edges, diag: float):
+    """Rasterise, shade and draw the wireframe at the supersampled resolution, then average down.
+    Returns (image, buffers, the depth reference of the wireframe or None)."""
+    cv2 = _cv2()
+    ss = style.supersample
     cam_hi = camera.resized(ss) if ss > 1 else camera
     buf = render_buffers(points, tris, cam_hi, _reuse=True, _checked=True)
-    out = _background(cam_hi.size, background)
-    _shade(buf, points, tris, colors, out, shading=shading, specular=0.10 if scalars is None else 0.04,
-           scalar_t=scalar_t, lut=lut)
+    out = _background(cam_hi.size, style.background)
+    _shade(buf, points, tris, surface.colors, out, shading=style.shading,
+           specular=0.10 if surface.lut is None else 0.04, scalar_t=surface.t, lut=surface.lut)
     ref = None
     if edges is not None:
         ref = _neighbourhood_max(buf.depth, 1)
         mask = _wire_mask(buf, edges, 0.004 * diag, ref)
-        a = float(np.clip(wire_alpha, 0.0, 1.0))
-        out[mask] = (out[mask] * (1 - a) + np.asarray(_bgr(wire_rgb), dtype=np.float32) * a + 0.5).astype(np.uint8)
+        a = float(np.clip(style.wire_alpha, 0.0, 1.0))
+        out[mask] = (out[mask] * (1 - a) + np.asarray(_bgr(style.wire_color), dtype=np.float32) * a + 0.5
+                     ).astype(np.uint8)
     if ss > 1:
+        w, h = camera.size
         out = cv2.resize(out, (w, h), interpolation=cv2.INTER_AREA)
-    out = np.ascontiguousarray(out)
+    return np.ascontiguousarray(out), buf, ref
 
-    # --- overlays at the final resolution -------------------------------------------------------
-    sets = []
-    if markers is not None:
-        iv, vis = point_visibility(markers, buf, tolerance=tol, _ref=ref)
-        sets.append(("circle", markers, iv, vis, marker_labels, marker_rgb, marker_name))
-    if extra is not None:
-        iv, vis = point_visibility(extra, buf, tolerance=tol, _ref=ref)
-        sets.insert(0, ("diamond", extra, iv, vis, extra_labels, extra_rgb, extra_name))
-    projected = [camera.project(pts)[0] for _, pts, *_ in sets]
-    if marker_radius is not None:
-        radius = float(marker_radius)
+
+@dataclass
+class _DrawnPoints:
+    glyph_boxes: list
+    labels: list            # (xy, text, rgb, visible) of every labelled point in view
+    legend: list            # point legend entries
+    radius: float
+
+
+def _draw_point_sets(out, camera: Camera, buf, ref, sets: list, style: RenderStyle, *, tolerance: float,
+                     scale: float) -> _DrawnPoints:
+    """Dots and diamonds (filled when visible, hollow when hidden), the links between them; the
+    glyphs' boxes, the labels to place and the legend entries."""
+    cv2 = _cv2()
+    seen = [point_visibility(ps.points, buf, tolerance=tolerance, _ref=ref) for ps in sets]
+    projected = [camera.project(ps.points)[0] for ps in sets]
+    if style.marker_radius is not None:
+        radius = float(style.marker_radius)
     else:
-        radius = glyph_radius([xy[iv] for xy, (_, _, iv, *_) in zip(projected, sets)], (w, h), scale=s)
-    if links:
-        a_xy, _ = camera.project(markers)
-        b_xy, _ = camera.project(extra)
+        w, h = camera.size
+        radius = glyph_radius([xy[iv] for xy, (iv, _) in zip(projected, seen)], (w, h), scale=scale)
+    if style.links:
+        by_shape = {ps.shape: ps.points for ps in sets}
+        a_xy, _ = camera.project(by_shape["circle"])
+        b_xy, _ = camera.project(by_shape["diamond"])
         f = 16
         for p, q in zip(a_xy, b_xy):
             if np.isfinite(p).all() and np.isfinite(q).all():
                 a = tuple(int(round((c - 0.5) * f)) for c in p)
                 b = tuple(int(round((c - 0.5) * f)) for c in q)
                 cv2.line(out, a, b, (230, 230, 230), 1, cv2.LINE_AA, 4)
-    point_legend, label_entries, glyph_boxes = [], [], []
-    for (shape, pts, iv, vis, labels, prgb, pname), xy in zip(sets, projected):
-        _draw_points(out, xy, iv, vis, prgb, radius=radius, shape=shape)
-        g = radius * (1.25 if shape == "diamond" else 1.0)
+    drawn = _DrawnPoints([], [], [], radius)
+    for ps, (iv, vis), xy in zip(sets, seen, projected):
+        _draw_points(out, xy, iv, vis, ps.rgb, radius=radius, shape=ps.shape)
+        g = radius * (1.25 if ps.shape == "diamond" else 1.0)
         for m in np.flatnonzero(iv):
-            glyph_boxes.append((xy[m, 0] - 0.5 - 0.8 * g, xy[m, 1] - 0.5 - 0.8 * g,
-                                xy[m, 0] - 0.5 + 0.8 * g, xy[m, 1] - 0.5 + 0.8 * g))
-            if labels is not None and labels[m]:
-                label_entries.append((xy[m], labels[m], prgb, bool(vis[m])))
+            drawn.glyph_boxes.append((xy[m, 0] - 0.5 - 0.8 * g, xy[m, 1] - 0.5 - 0.8 * g,
+                                      xy[m, 0] - 0.5 + 0.8 * g, xy[m, 1] - 0.5 + 0.8 * g))
+            if ps.labels is not None and ps.labels[m]:
+                drawn.labels.append((xy[m], ps.labels[m], ps.rgb, bool(vis[m])))
         nvis, nin = int(vis.sum()), int(iv.sum())
-        text = f"{pname}: {nvis} visible"
+        text = f"{ps.name}: {nvis} visible"
         if nin - nvis:
             text += f", {nin - nvis} hidden"
-        if pts.shape[0] - nin:
-            text += f", {pts.shape[0] - nin} off"
-        point_legend.append(("circle" if shape == "circle" else "diamond", prgb, text))
-    reserved = list(glyph_boxes)
-    if lut is not None and legend:
-        reserved.append(_colorbar(out, lut, lo, hi, scalar_label, s, has_nan))
-    if legend:
-        for box in (_legend(out, legend_entries, s, corner="bottom-left"),
-                    _legend(out, point_legend[::-1], s, corner="bottom-right" if legend_entries else "bottom-left")):
+        if ps.points.shape[0] - nin:
+            text += f", {ps.points.shape[0] - nin} off"
+        drawn.legend.append((ps.shape, ps.rgb, text))
+    return drawn
+
+
+def _draw_legends(out, surface: _Surface, point_legend: list, style: RenderStyle, title: str, s: float) -> list:
+    """Colour bar, region and point legends, title; returns the boxes they cover."""
+    cv2 = _cv2()
+    reserved = []
+    if surface.lut is not None and style.legend:
+        reserved.append(_colorbar(out, surface.lut, surface.lo, surface.hi, surface.label, s, surface.has_nan))
+    if style.legend:
+        for box in (_legend(out, surface.legend, s, corner="bottom-left"),
+                    _legend(out, point_legend[::-1], s, corner="bottom-right" if surface.legend else "bottom-left")):
             if box is not None:
                 reserved.append(box)
     if title:
@@ -352,25 +374,30 @@ def render_mesh(points: np.ndarray, triangles: np.ndarray, *, camera: Camera | N
             _text(out, line, org, size, (245, 245, 245))
             (tw, th), bl = cv2.getTextSize(line, 0, size, 3)
             reserved.append((org[0] - 2, org[1] - th - 2, org[0] + tw + 2, org[1] + bl + 2))
-    if label_entries:
+    return reserved
+
+
+def _draw_labels(out, drawn: _DrawnPoints, reserved: list, s: float, label_info: dict | None) -> None:
+    """Point labels placed around everything else (smaller text before leaving any out)."""
+    entries, radius = drawn.labels, drawn.radius
+    h, w = out.shape[:2]
+    if entries:
         font = label_font(s)
         obstacles = np.array(reserved, dtype=np.float64).reshape(-1, 4)
         while True:  # a crowded small picture: smaller text before leaving labels out
-            placement, _, bases = place_point_labels((w, h), label_entries, radius=radius, font=font,
-                                                     obstacles=obstacles)
+            placement, _, bases = place_point_labels((w, h), entries, radius=radius, font=font, obstacles=obstacles)
             if not placement.n_dropped or font <= MIN_LABEL_FONT * 0.8:
                 break
             font = max(font * 0.88, MIN_LABEL_FONT * 0.8)
-        draw_point_labels(out, label_entries, placement, bases, radius=radius, font=font)
+        draw_point_labels(out, entries, placement, bases, radius=radius, font=font)
         if label_info is not None:
             label_info.update(boxes=placement.boxes, placed=placement.placed, leader=placement.leader,
-                              anchors=np.array([e[0] for e in label_entries]) - 0.5, texts=[e[1] for e in label_entries],
+                              anchors=np.array([e[0] for e in entries]) - 0.5, texts=[e[1] for e in entries],
                               reserved=np.array(reserved, dtype=np.float64).reshape(-1, 4), radius=radius)
     elif label_info is not None:
         label_info.update(boxes=np.zeros((0, 4)), placed=np.zeros(0, bool), leader=np.zeros(0, bool),
                           anchors=np.zeros((0, 2)), texts=[], reserved=np.array(reserved).reshape(-1, 4),
                           radius=radius)
-    return out
 
 
 #: region roles (and names, for plain dicts) that are loops of vertices, drawn with a band
@@ -449,15 +476,17 @@ def _band(points: np.ndarray, idx: np.ndarray, width: float) -> tuple[np.ndarray
     return near, 0.85 * (1.0 - d[near] / width) ** 0.6
 
 
-def render_face(mesh, *, regions=None, wireframe: bool = False, **kwargs) -> np.ndarray:
+def render_face(mesh, *, regions=None, wireframe: bool = False, camera: Camera | None = None,
+                style: RenderStyle | None = None, colors=None, markers=None, extra=None, title: str = "") -> np.ndarray:
     """:func:`render_mesh` of a :class:`usdface.mesh.FaceMesh`: its fan triangulation, its polygon
-    edges as wireframe when ``wireframe``, and ``regions`` (list of Region or dict) as region colours."""
-    if wireframe and kwargs.get("edges") is None:
-        kwargs["edges"] = polygon_edges(mesh.face_vertex_counts, mesh.face_vertex_indices)
-    if regions is not None:
-        kwargs["region_colors"] = regions
-    return render_mesh(mesh.points, mesh.triangles(), **kwargs)
+    edges as wireframe when ``wireframe``, and ``regions`` (list of Region or dict) as region colours
+    (else ``colors``)."""
+    edges = polygon_edges(mesh.face_vertex_counts, mesh.face_vertex_indices) if wireframe else None
+    colors = RegionColors(regions) if regions is not None else colors
+    return render_mesh(mesh.points, mesh.triangles(), camera=camera, style=style, colors=colors, markers=markers,
+                       extra=extra, edges=edges, title=title)
 
 
-__all__ = ["BACKGROUND", "Buffers", "encode_png", "fit_camera", "point_visibility", "polygon_edges", "rasterize", "render_buffers",
+__all__ = ["BACKGROUND", "Buffers", "PointSet", "RegionColors", "RenderStyle", "ScalarColors", "VertexColors",
+           "encode_png", "fit_camera", "point_visibility", "polygon_edges", "rasterize", "render_buffers",
            "render_face", "render_mesh", "vertex_normals", "write_png"]

@@ -2,12 +2,16 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import OptionError
 from .camera import Camera
 from .render import _cv2, _rgb, _text, fit_camera, render_mesh
+from .style import PointSet, RenderStyle, ScalarColors
+
+__all__ = ["SEQUENCE_STYLE", "SheetLayout", "contact_sheet", "render_sequence"]
 
 
 def contact_sheet(images, captions=None, *, columns: int | None = None, gap: int = 6,
@@ -82,12 +86,24 @@ def contact_sheet(images, captions=None, *, columns: int | None = None, gap: int
     return sheet
 
 
-def render_sequence(frames: np.ndarray, triangles: np.ndarray, *, frame_numbers=None,
-                    camera: Camera | None = None, view: str | float = "front", cell_size=(256, 256),
-                    projection: str = "orthographic", markers: np.ndarray | None = None,
-                    extra_points: np.ndarray | None = None, scalars: np.ndarray | None = None,
-                    scalar_range: tuple[float, float] | None = None, columns: int | None = None,
-                    title: str = "", caption: str = "frame {}", **render_kwargs) -> np.ndarray:
+@dataclass(frozen=True)
+class SheetLayout:
+    """How :func:`render_sequence` lays out its cells: ``columns`` (default
+    ``ceil(sqrt(frames))``), a ``title`` above the grid, and the ``caption`` format under each
+    cell (``{}`` replaced by the frame number)."""
+
+    columns: int | None = None
+    title: str = ""
+    caption: str = "frame {}"
+
+
+#: the cell size of :func:`render_sequence` without a style
+SEQUENCE_STYLE = RenderStyle(size=(256, 256))
+
+
+def render_sequence(frames: np.ndarray, triangles: np.ndarray, *, frame_numbers=None, camera: Camera | None = None,
+                    style: RenderStyle = SEQUENCE_STYLE, colors=None, markers=None, extra=None,
+                    edges: np.ndarray | None = None, layout: SheetLayout = SheetLayout()) -> np.ndarray:
     """Render frames of an animation with one shared camera and lay them out as a contact sheet.
 
     Parameters
@@ -98,22 +114,20 @@ def render_sequence(frames: np.ndarray, triangles: np.ndarray, *, frame_numbers=
     frame_numbers : sequence of F numbers, optional
         Frame (time code) of each frame for the captions; default 0..F-1.
     camera : Camera, optional
-        Default: fitted to the union of all frames (and markers), so the framing does not jump.
-    view, cell_size, projection :
-        Passed to :meth:`Camera.fit` when no camera is given.
-    markers, extra_points : ndarray, shape (F, M, 3), optional
-        Point sets per frame.
-    scalars : ndarray, shape (F, N), optional
-        A value per vertex and frame; one colour range for every frame (``scalar_range`` or the
-        min/max over all frames) so colours compare across cells.
-    columns : int, optional
-        Grid width.
-    title : str
-        Sheet title.
-    caption : str
-        Caption format, ``{}`` replaced by the frame number.
-    **render_kwargs :
-        Other :func:`render_mesh` options (region_colors, edges, marker_labels, colormap...).
+        Default: fitted to the union of all frames (and markers) with the style's view, size
+        (the cell's) and projection, so the framing does not jump.
+    style : RenderStyle
+        Every cell's look (:func:`render_mesh`); its ``size`` is the cell size (default 256 x 256).
+    colors : ScalarColors with values (F, N), or RegionColors / VertexColors, optional
+        A value per vertex and frame shares one colour range over every frame (its ``range``, or
+        the min/max over all frames) so colours compare across cells; regions or vertex colours
+        are the same in every cell.
+    markers, extra : PointSet or ndarray, shape (F, M, 3), optional
+        Point sets per frame (a PointSet's labels, colour and name apply to every frame).
+    edges : ndarray (E, 2), optional
+        Wireframe edges (:func:`polygon_edges`).
+    layout : SheetLayout
+        Columns, title and captions.
 
     Returns
     -------
@@ -125,43 +139,53 @@ def render_sequence(frames: np.ndarray, triangles: np.ndarray, *, frame_numbers=
     if fr.ndim != 3 or fr.shape[2] != 3 or fr.shape[0] == 0:
         raise OptionError(f"render_sequence: frames must have shape (F, N, 3); got {fr.shape}")
     nf = fr.shape[0]
-
-    def per_frame(a, what):
-        if a is None:
-            return None
-        a = np.asarray(a, dtype=np.float64)
-        if a.ndim == 2 and nf == 1:
-            a = a[None]
-        if a.ndim != 3 or a.shape[0] != nf or a.shape[2] != 3:
-            raise OptionError(f"render_sequence: {what} must have shape ({nf}, M, 3); got {a.shape}")
-        return a
-
-    mk = per_frame(markers, "markers")
-    ex = per_frame(extra_points, "extra_points")
-    if scalars is not None:
-        sc = np.asarray(scalars, dtype=np.float64)
-        if sc.shape != fr.shape[:2]:
-            raise OptionError(f"render_sequence: scalars must have shape {fr.shape[:2]}; got {sc.shape}")
-        if scalar_range is None:
-            from .colormap import scalar_range as default_range
-            scalar_range = default_range(sc, colormap=render_kwargs.get("colormap", "viridis"))
-    else:
-        sc = None
+    mk = _per_frame(markers, nf, "markers")
+    ex = _per_frame(extra, nf, "extra_points")
+    colors = _shared_scalar_range(colors, fr.shape[:2])
     numbers = list(range(nf)) if frame_numbers is None else list(frame_numbers)
     if len(numbers) != nf:
         raise OptionError(f"render_sequence: {len(numbers)} frame numbers for {nf} frames")
+    scalars = isinstance(colors, ScalarColors)
     if camera is None:
-        camera = fit_camera([fr, mk, ex], view=view, size=cell_size, projection=projection,
-                            colorbar=sc is not None and render_kwargs.get("legend", True))
+        camera = fit_camera([fr, None if mk is None else mk.points, None if ex is None else ex.points],
+                            view=style.view, size=style.size, projection=style.projection, pitch=style.pitch,
+                            colorbar=scalars and style.legend)
     cells = []
     for k in range(nf):
-        cells.append(render_mesh(fr[k], triangles, camera=camera,
-                                 markers=None if mk is None else mk[k],
-                                 extra_points=None if ex is None else ex[k],
-                                 scalars=None if sc is None else sc[k], scalar_range=scalar_range,
-                                 **render_kwargs))
-    caps = [caption.format(_fmt_frame(v)) for v in numbers]
-    return contact_sheet(cells, caps, columns=columns, title=title)
+        cell_colors = replace(colors, values=colors.values[k]) if scalars else colors
+        cells.append(render_mesh(fr[k], triangles, camera=camera, style=style, colors=cell_colors,
+                                 markers=None if mk is None else replace(mk, points=mk.points[k]),
+                                 extra=None if ex is None else replace(ex, points=ex.points[k]), edges=edges))
+    caps = [layout.caption.format(_fmt_frame(v)) for v in numbers]
+    return contact_sheet(cells, caps, columns=layout.columns, title=layout.title)
+
+
+def _per_frame(points, nf: int, what: str) -> PointSet | None:
+    """A point set with (F, M, 3) points (one frame may be given as (M, 3))."""
+    ps = PointSet.of(points)
+    if ps is None:
+        return None
+    a = np.asarray(ps.points, dtype=np.float64)
+    if a.ndim == 2 and nf == 1:
+        a = a[None]
+    if a.ndim != 3 or a.shape[0] != nf or a.shape[2] != 3:
+        raise OptionError(f"render_sequence: {what} must have shape ({nf}, M, 3); got {a.shape}")
+    return replace(ps, points=a)
+
+
+def _shared_scalar_range(colors, shape):
+    """Scalars (F, N) checked, with one range over every frame."""
+    if not isinstance(colors, ScalarColors):
+        return colors
+    sc = np.asarray(colors.values, dtype=np.float64)
+    if sc.shape != shape:
+        raise OptionError(f"render_sequence: scalars must have shape {shape}; got {sc.shape}")
+    rng = colors.range
+    if rng is None:
+        from .colormap import scalar_range as default_range
+
+        rng = default_range(sc, colormap=colors.colormap)
+    return replace(colors, values=sc, range=rng)
 
 
 def _fmt_frame(v) -> str:

@@ -18,31 +18,28 @@ def _scalars(scene, color, reference_points):
 
 
 def _render_one(scene, *, camera, color, reference_points, labels, title, scalar_range=None):
-    from ..preview import render_mesh
+    from ..preview import PointSet, RegionColors, ScalarColors, render_mesh
 
-    kwargs = {}
     units = scene.mesh.units or "units"
+    colors = None
     if color == "regions":
-        kwargs["region_colors"] = scene.regions or None
+        colors = RegionColors(scene.regions) if scene.regions else None
     elif color == "displacement":
-        kwargs.update(scalars=_scalars(scene, color, None), scalar_label=f"displacement ({units})",
-                      scalar_range=scalar_range)
+        colors = ScalarColors(_scalars(scene, color, None), range=scalar_range, label=f"displacement ({units})")
     elif color == "error":
-        kwargs.update(scalars=_scalars(scene, color, reference_points), scalar_label=f"error vs reference ({units})",
-                      scalar_range=scalar_range)
+        colors = ScalarColors(_scalars(scene, color, reference_points), range=scalar_range,
+                              label=f"error vs reference ({units})")
     elif color == "hybrid-weight":
         if scene.hybrid_weight is None:
             raise OptionError("--color hybrid-weight: the file has no primvars:usdface:hybridWeight "
                               "(compute hybrid distances with `usdface distances --method hybrid`)")
-        kwargs.update(scalars=scene.hybrid_weight, scalar_range=(0.0, 1.0), scalar_label="hybrid weight w")
+        colors = ScalarColors(scene.hybrid_weight, range=(0.0, 1.0), label="hybrid weight w")
+    markers = None
     if scene.markers is not None:
-        kwargs["markers"] = scene.markers
-        if labels:
-            kwargs["marker_labels"] = scene.marker_names
-    if scene.bound_points is not None:
-        kwargs["extra_points"] = scene.bound_points
-        kwargs["extra_name"] = "bound points"
-    return render_mesh(scene.mesh.points, scene.mesh.triangles(), camera=camera, title=title, **kwargs)
+        markers = PointSet(scene.markers, labels=scene.marker_names if labels else None)
+    bound = PointSet(scene.bound_points, name="bound points") if scene.bound_points is not None else None
+    return render_mesh(scene.mesh.points, scene.mesh.triangles(), camera=camera, colors=colors, markers=markers,
+                       extra=bound, title=title)
 
 
 def preview(file, *, options: PreviewOptions, output) -> Result:

@@ -3,8 +3,11 @@
 ``OUTDIR`` (written by ``usdface run``) holds everything: ``summary.json`` (inputs, options,
 per-step reports: stabilisation, gaps filled, binding residuals, transfer amplification and
 regularisation, timing), ``capture.usdc`` (stabilised markers, validity, the head motion removed),
-and the shot stage (the animated face). :func:`gather_shot` reads them into plain numbers
-(:class:`ShotData`); plots and HTML are built from that, with no USD.
+and the shot stage (the animated face). :func:`gather_shot` turns them into plain numbers
+(:class:`ShotData`); plots and HTML are built from that. No USD here: the report pipeline
+(:mod:`usdface.pipeline.report`) reads the shot stage and the capture layer and hands over the
+shot's reader (an object with ``face_points``, ``rest_points``...) and the capture (a
+:class:`usdface.capture.Capture`).
 """
 from __future__ import annotations
 
@@ -16,10 +19,12 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["ShotData", "gather_shot", "SHOT_FILES"]
+__all__ = ["ShotData", "gather_shot", "find_shot", "load_run_summary", "SHOT_FILES", "CAPTURE_FILE"]
 
 #: the shot stages a report looks for, in order
 SHOT_FILES = ("shot.usda", "shot_skel.usda", "shot_blendshapes.usda")
+#: the run's conditioned capture (the marker plots)
+CAPTURE_FILE = "capture.usdc"
 
 
 @dataclass
@@ -77,16 +82,14 @@ def find_shot(outdir: Path) -> Path:
                      "`usdface run`")
 
 
-def gather_shot(outdir, *, shot=None) -> ShotData:
-    """Read a run's output folder into :class:`ShotData`.
+def load_run_summary(outdir) -> dict:
+    """The ``summary.json`` of a run's output folder.
 
     Raises
     ------
     InputError
-        The folder, its summary.json or its shot stage is missing or unreadable.
+        The folder or its summary.json is missing or unreadable.
     """
-    from ..usd.playback import ShotReader
-
     outdir = Path(outdir)
     if not outdir.is_dir():
         raise InputError(f"report {outdir}: no such folder (expected the output folder of `usdface run`)")
@@ -94,24 +97,43 @@ def gather_shot(outdir, *, shot=None) -> ShotData:
     if not summary_path.is_file():
         raise InputError(f"report {outdir}: no summary.json (expected the output folder of `usdface run`)")
     try:
-        summary = json.loads(summary_path.read_text())
+        return json.loads(summary_path.read_text())
     except (OSError, ValueError) as exc:
         raise InputError(f"report {summary_path}: cannot be read as JSON ({exc})") from None
-    shot = Path(shot) if shot is not None else find_shot(outdir)
-    reader = ShotReader.open(shot)
+
+
+def gather_shot(outdir, summary: dict, face, *, shot, capture=None) -> ShotData:
+    """A run's output folder as :class:`ShotData`.
+
+    Parameters
+    ----------
+    outdir : path
+        The run's output folder.
+    summary : dict
+        Its summary.json (:func:`load_run_summary`).
+    face : shot reader
+        The shot stage read (:class:`usdface.usd.playback.ShotReader`): ``name``, ``rate``,
+        ``start``, ``end``, ``units``, ``rest_points`` (N, 3), ``face_points(times,
+        stabilized=True)`` (F, N, 3) and ``transfer_settings()``.
+    shot : path
+        The shot stage (:func:`find_shot`).
+    capture : usdface.capture.Capture, optional
+        The run's conditioned capture (``capture.usdc``); without it the marker plots are left out.
+    """
+    outdir = Path(outdir)
     prov = summary.get("provenance", {})
-    data = ShotData(outdir=outdir, name=reader.name, shot=shot, summary=summary,
+    data = ShotData(outdir=outdir, name=face.name, shot=Path(shot), summary=summary,
                     options=_json_field(prov.get("options", {})) or {},
-                    inputs=_json_field(prov.get("inputs", {})) or {}, rate=reader.rate,
-                    frames=np.arange(reader.start, reader.end + 1), units=reader.units or "units")
+                    inputs=_json_field(prov.get("inputs", {})) or {}, rate=face.rate,
+                    frames=np.arange(face.start, face.end + 1), units=face.units or "units")
     steps = summary.get("steps", {})
-    _capture(data, outdir, steps.get("import-capture", {}))
+    _capture(data, capture, steps.get("import-capture", {}))
     bind = steps.get("bind", {})
     data.residuals = dict(bind.get("residuals", {}))
     data.residual_kind = bind.get("residualKind", "")
-    _displacement(data, reader)
+    _displacement(data, face)
     tr = dict(steps.get("transfer") or steps.get("skel") or {})
-    tr.update({f"layer:{k}": v for k, v in reader.transfer_settings().items()})
+    tr.update({f"layer:{k}": v for k, v in face.transfer_settings().items()})
     data.transfer = tr
     from .sections import run_gather_hooks
 
@@ -119,14 +141,10 @@ def gather_shot(outdir, *, shot=None) -> ShotData:
     return data
 
 
-def _capture(data: ShotData, outdir: Path, cap_step: dict) -> None:
-    from ..usd.capture_layer import read_capture_layer
-
-    path = outdir / "capture.usdc"
-    if not path.is_file():
-        data.warnings.append("capture.usdc is missing: no marker plots")
+def _capture(data: ShotData, cap, cap_step: dict) -> None:
+    if cap is None:
+        data.warnings.append(f"{CAPTURE_FILE} is missing: no marker plots")
         return
-    cap = read_capture_layer(path)
     data.marker_names = list(cap.names)
     pos = np.asarray(cap.positions, dtype=np.float64)
     data.markers = pos

@@ -26,21 +26,33 @@ The deformation follows UsdSkel exactly, through UsdSkel itself (``UsdSkel.Cache
 mesh is skinned only under a ``SkelRoot`` with a bound Skeleton that has a bind pose, blend
 shapes apply only when the Skeleton's animation has ``blendShapes`` weights, joint and blend-shape
 orders are remapped from the animation to the mesh, rigid (constant-interpolation) influences move
-the whole mesh. Matrices returned here are numpy column-vector 4 x 4 (``M @ [x, y, z, 1]``).
+the whole mesh (:mod:`usdface.usd.skel_deform`). Matrices returned here are numpy column-vector
+4 x 4 (``M @ [x, y, z, 1]``), except :meth:`FaceEvaluator.head_motion` (row-vector, as the head
+motion is authored).
+
+It is also the one reader of what else a shot shows about the face: its triangles, regions,
+hybrid weight, binding and bound points, the capture markers, the head motion on the face's root
+prim and the transfer's settings. A playblast or report reads a shot through
+:class:`usdface.usd.playback.ShotReader` and a preview a frame through
+:func:`usdface.usd.scene.read_scene_frame`, both built on it.
 """
 from __future__ import annotations
 
-import logging
+import json
 import os
+from functools import cached_property
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..errors import InputError, OptionError
+from ..model.mesh import FaceMesh
+from .capture_layer import find_marker_set
 from .layers import open_stage, stage_units
-from .mesh_layer import find_mesh
+from .mesh_layer import BINDING_API, find_mesh, read_binding, read_regions
+from .skel_deform import SkelDeformation
 
-log = logging.getLogger("usdface")
+__all__ = ["FaceEvaluator", "SPACES", "evaluate_points", "remove_head_motion"]
 
 SPACES = ("world", "mesh")
 _CHUNK_FRAMES = 64  # frames per chunk of iter_points (64 x 20k points x 3 doubles = 31 MB)
@@ -134,6 +146,11 @@ class FaceEvaluator:
     joints : list of str, the skeleton's joint order ([] without skinning)
     blend_shapes : list of str, the mesh's ``skel:blendShapes`` order ([] without blend shapes)
     animated : bool, whether more than one time code moves the face (in world space)
+    triangles : ndarray (T, 3) int64, the polygons' fan triangulation (read on first use, as
+        the following)
+    regions : list of Region; hybrid_weight : ndarray (N,) or None
+    binding : Binding or None, the markers bound to the surface (:meth:`bound_points`)
+    marker_names : list of str, the capture's markers (:meth:`markers`; [] without a capture)
     """
 
     def __init__(self, stage: Usd.Stage, *, mesh: str | Sdf.Path | None = None, source: str | None = None):
@@ -165,7 +182,10 @@ class FaceEvaluator:
         self.fps = float(stage.GetFramesPerSecond())
         self._points_vary = len(samples) > 0
         self._xf_cache = UsdGeom.XformCache()
-        self._setup_skel()
+        self._skel = SkelDeformation(prim, n_points=self.n_points, source=self.source)
+        self.skinning_method = self._skel.skinning_method
+        self.joints = self._skel.joints
+        self.blend_shapes = self._skel.blend_shapes
         self._setup_times(samples)
 
     # -- set-up ----------------------------------------------------------------------------------
@@ -175,78 +195,12 @@ class FaceEvaluator:
         """Open ``path`` (any USD file) and build its evaluator."""
         return cls(open_stage(path, what=what), mesh=mesh, source=str(path))
 
-    def _setup_skel(self) -> None:
-        self.skinning_method = None
-        self.joints: list[str] = []
-        self.blend_shapes: list[str] = []
-        self._lbs = self._rigid = self._blend = False
-        self._skel_prim = None
-        prim = self.prim
-        binding = UsdSkel.BindingAPI(prim)
-        has_influences = prim.HasAPI(UsdSkel.BindingAPI) and (
-            binding.GetJointIndicesPrimvar().HasAuthoredValue() or binding.GetBlendShapesAttr().HasAuthoredValue())
-        root = UsdSkel.Root.Find(prim)
-        if not root:
-            if has_influences:
-                log.warning("%s: %s has skin weights or blend shapes but no SkelRoot ancestor; UsdSkel does not "
-                            "deform it (evaluating its authored points)", self.source, self.mesh_path)
-            return
-        cache = UsdSkel.Cache()
-        cache.Populate(root, Usd.TraverseInstanceProxies())
-        skin = cache.GetSkinningQuery(prim)
-        skeleton = binding.GetInheritedSkeleton()
-        skel_query = cache.GetSkelQuery(skeleton) if skeleton else None
-        if not skin or not skel_query:
-            if has_influences:
-                log.warning("%s: %s is under the SkelRoot %s but bound to no valid Skeleton; UsdSkel does not "
-                            "deform it", self.source, self.mesh_path, root.GetPath())
-            return
-        self._skin, self._skel_query = skin, skel_query
-        self._anim_query = skel_query.GetAnimQuery()
-        self._skel_prim = skel_query.GetPrim()
-        if skin.HasJointInfluences() and skel_query.HasBindPose():
-            self._rigid = skin.IsRigidlyDeformed()
-            self._lbs = not self._rigid
-            self.skinning_method = str(skin.GetSkinningMethod())
-            self.joints = [str(j) for j in skel_query.GetJointOrder()]
-            self._joint_mapper = skin.GetJointMapper()
-            if self._joint_mapper is not None and self._joint_mapper.IsIdentity():
-                self._joint_mapper = None
-            self._influences_vary = (skin.GetJointIndicesPrimvar().ValueMightBeTimeVarying()
-                                     or skin.GetJointWeightsPrimvar().ValueMightBeTimeVarying())
-            self._influences = skin.ComputeJointInfluences(Usd.TimeCode.Default())
-            if self._influences is None:
-                raise InputError(f"{self.source}: the joint influences of {self.mesh_path} are invalid "
-                                 "(primvars:skel:jointIndices / jointWeights)")
-            self._n_influences = skin.GetNumInfluencesPerComponent()
-            if not self._rigid and len(self._influences[0]) != self.n_points * self._n_influences:
-                raise InputError(f"{self.source}: {self.mesh_path} has {len(self._influences[0])} joint indices "
-                                 f"for {self.n_points} points x {self._n_influences} influences")
-        if skin.HasBlendShapes() and self._anim_query and len(self._anim_query.GetBlendShapeOrder()):
-            query = UsdSkel.BlendShapeQuery(binding)
-            offsets = query.ComputeSubShapePointOffsets()
-            if query.GetNumBlendShapes() and any(len(o) for o in offsets):
-                self._blend = True
-                self._bs_query = query
-                self._bs_offsets = offsets
-                self._bs_indices = query.ComputeBlendShapePointIndices()
-                self._bs_mapper = skin.GetBlendShapeMapper()
-                self.blend_shapes = [str(b) for b in (skin.GetBlendShapeOrder() or [])]
-
     def _setup_times(self, point_samples) -> None:
         times = set(point_samples)
         times |= _xform_samples(self.prim)
-        if self._lbs or self._rigid:
-            times |= _xform_samples(self._skel_prim)
-            if self._anim_query:
-                times.update(self._anim_query.GetJointTransformTimeSamples())
-            # (SkinningQuery.GetTimeSamples throws when geomBindTransform is not authored)
-            for attr in (self._skin.GetJointIndicesPrimvar().GetAttr(), self._skin.GetJointWeightsPrimvar().GetAttr(),
-                         self._skin.GetGeomBindTransformAttr()):
-                if attr:
-                    times.update(attr.GetTimeSamples())
-        if self._blend:
-            times.update(self._anim_query.GetBlendShapeWeightTimeSamples())
+        if self._skel.skinned:
+            times |= _xform_samples(self._skel.skel_prim)
+        times |= self._skel.time_samples()
         self.time_codes = np.array(sorted(times), dtype=np.float64)
         if self.stage.HasAuthoredTimeCodeRange():
             self.frame_range = (float(self.stage.GetStartTimeCode()), float(self.stage.GetEndTimeCode()))
@@ -254,16 +208,7 @@ class FaceEvaluator:
             self.frame_range = (float(self.time_codes[0]), float(self.time_codes[-1]))
         else:
             self.frame_range = None
-        steps = []
-        if self._points_vary:
-            steps.append("points")
-        if self._blend:
-            steps.append("blendShapes")
-        if self._lbs:
-            steps.append("skinning")
-        if self._rigid:
-            steps.append("rigidSkinning")
-        self.deformation = tuple(steps)
+        self.deformation = (("points",) if self._points_vary else ()) + self._skel.steps
         self.animated = self.time_codes.size > 1
 
     @property
@@ -272,7 +217,7 @@ class FaceEvaluator:
 
     @property
     def skinned(self) -> bool:
-        return self._lbs or self._rigid
+        return self._skel.skinned
 
     @property
     def start(self) -> float:
@@ -285,6 +230,8 @@ class FaceEvaluator:
         return self.time_codes.copy() if self.time_codes.size else np.array([self.start])
 
     def _timecode(self, time) -> Usd.TimeCode:
+        if isinstance(time, Usd.TimeCode):
+            return time
         return Usd.TimeCode(self.start if time is None else float(time))
 
     # -- transforms ------------------------------------------------------------------------------
@@ -303,11 +250,11 @@ class FaceEvaluator:
         space) to ``space``; Gf does the 4 x 4 algebra (numpy's LAPACK inverse of one 4 x 4
         costs a millisecond on a busy machine)."""
         if self.skinned:
-            m = self._world_gf(self._skel_prim, tc)
+            m = self._world_gf(self._skel.skel_prim, tc)
             if rigid is not None:
                 m = rigid * m
             if undeformed:
-                m = self._skin.GetGeomBindTransform(tc) * m
+                m = self._skel.geom_bind_transform(tc) * m
         elif space == "mesh":
             return _IDENTITY  # points are authored in mesh space: exactly, not W * W^-1
         else:
@@ -328,61 +275,21 @@ class FaceEvaluator:
 
     def blend_shape_weights(self, time=None) -> np.ndarray:
         """(B,) float32 blend-shape weights at ``time`` in the mesh's ``blend_shapes`` order."""
-        if not self._blend:
-            return np.zeros(0, dtype=np.float32)
-        weights = self._anim_query.ComputeBlendShapeWeights(self._timecode(time))
-        if self._bs_mapper is not None and not self._bs_mapper.IsIdentity():
-            weights = self._bs_mapper.Remap(weights)
-        return np.asarray(weights, dtype=np.float32)
+        return self._skel.blend_shape_weights(self._timecode(time))
 
     def skinning_transforms(self, time=None) -> np.ndarray:
         """(J, 4, 4) column-vector skinning transforms (inverse bind times joint, skeleton space)
         in the mesh's joint order at ``time``."""
         if not self.skinned:
             return np.zeros((0, 4, 4))
-        return np.transpose(np.asarray(self._skin_xforms(self._timecode(time)), dtype=np.float64), (0, 2, 1))
-
-    def _skin_xforms(self, tc: Usd.TimeCode):
-        xforms = self._skel_query.ComputeSkinningTransforms(tc)
-        if xforms is None:
-            raise InputError(f"{self.source}: UsdSkel cannot compute the skinning transforms of "
-                             f"{self._skel_prim.GetPath()} at time {tc.GetValue():g}")
-        if self._joint_mapper is not None:
-            xforms = self._joint_mapper.RemapTransforms(xforms, Vt.Matrix4dArray())
-        return xforms
-
-    def _apply_blend_shapes(self, pts: Vt.Vec3fArray, tc: Usd.TimeCode) -> None:
-        weights = self._anim_query.ComputeBlendShapeWeights(tc)
-        if weights is None:
-            return
-        if self._bs_mapper is not None and not self._bs_mapper.IsIdentity():
-            weights = self._bs_mapper.Remap(weights)
-        sub_weights, shape_idx, sub_idx = self._bs_query.ComputeSubShapeWeights(Vt.FloatArray(weights))
-        if not self._bs_query.ComputeDeformedPoints(sub_weights, shape_idx, sub_idx, self._bs_indices,
-                                                    self._bs_offsets, pts):
-            raise InputError(f"{self.source}: UsdSkel could not apply the blend shapes of {self.mesh_path} at "
-                             f"time {tc.GetValue():g} (point indices or offsets out of range?)")
+        xforms = self._skel.skinning_transforms(self._timecode(time))
+        return np.transpose(np.asarray(xforms, dtype=np.float64), (0, 2, 1))
 
     def _deformed(self, tc: Usd.TimeCode) -> tuple[Vt.Vec3fArray, Gf.Matrix4d | None]:
         """Deformed points (skeleton space when skinned, else mesh space) and, for rigid
         skinning, the row-vector transform UsdSkel gives the whole mesh."""
         pts = self._base_points(tc)
-        if self._blend:
-            self._apply_blend_shapes(pts, tc)
-        if self._lbs:
-            indices, weights = self._influences
-            if self._influences_vary:
-                indices, weights = self._skin.ComputeJointInfluences(tc)
-            gbind = self._skin.GetGeomBindTransform(tc)
-            if not UsdSkel.SkinPoints(self._skin.GetSkinningMethod(), gbind, self._skin_xforms(tc), indices, weights,
-                                      self._n_influences, pts, False):
-                raise InputError(f"{self.source}: UsdSkel could not skin {self.mesh_path} at time "
-                                 f"{tc.GetValue():g} (joint indices out of range?)")
-            return pts, None
-        if self._rigid:
-            # the query remaps the skeleton's joint order to the mesh's itself
-            return pts, self._skin.ComputeSkinnedTransform(self._skel_query.ComputeSkinningTransforms(tc), tc)
-        return pts, None
+        return pts, self._skel.deform(pts, tc)
 
     # -- queries ---------------------------------------------------------------------------------
 
@@ -463,6 +370,121 @@ class FaceEvaluator:
         m = self._to_space(self._timecode(time), space, undeformed=True)
         return np.asarray(self._rest_vt, dtype=np.float64) @ m[:3, :3] + m[3, :3]
 
+    # -- what else the stage shows about the face ------------------------------------------------
+
+    @cached_property
+    def triangles(self) -> np.ndarray:
+        """(T, 3) int64 fan triangulation of the mesh's polygons (:meth:`FaceMesh.triangles`)."""
+        if not self.has_topology:
+            raise InputError(f"{self.source}: {self.mesh_path} has no topology here (an over-only layer)")
+        return FaceMesh(points=np.zeros((self.n_points, 3)), face_vertex_counts=self.face_vertex_counts,
+                        face_vertex_indices=self.face_vertex_indices).triangles()
+
+    @cached_property
+    def regions(self) -> list:
+        """Every FaceRegionAPI instance on the mesh (list of :class:`usdface.mesh.Region`)."""
+        return read_regions(self.prim)
+
+    @cached_property
+    def hybrid_weight(self) -> np.ndarray | None:
+        """(N,) float64 ``primvars:usdface:hybridWeight`` (the hybrid distance's weight), or None."""
+        w = UsdGeom.PrimvarsAPI(self.prim).GetPrimvar("usdface:hybridWeight")
+        return np.asarray(w.Get(), dtype=np.float64) if w and w.HasValue() else None
+
+    @cached_property
+    def binding(self):
+        """The markers' binding to the surface (:class:`usdface.mesh.Binding`), or None."""
+        return read_binding(self.stage, source=self.source) if self.prim.HasAPI(BINDING_API) else None
+
+    def bound_points(self, points: np.ndarray) -> np.ndarray | None:
+        """(..., M, 3) bound surface points of the binding on face points (..., N, 3), in their
+        space (None without a binding)."""
+        b = self.binding
+        if b is None:
+            return None
+        tv, bc = np.asarray(b.triangle_vertices), np.asarray(b.barycentrics)
+        return np.einsum("...mkd,mk->...md", np.asarray(points)[..., tv, :], bc)
+
+    @cached_property
+    def _marker_prim(self) -> Usd.Prim | None:
+        try:
+            return find_marker_set(self.stage)
+        except InputError:
+            return None
+
+    @cached_property
+    def marker_names(self) -> list:
+        """Names of the capture markers the stage holds ([] without a capture)."""
+        prim = self._marker_prim
+        return [] if prim is None else list(prim.GetAttribute("usdface:markerSet:names").Get() or [])
+
+    def markers(self, times, *, stabilized: bool = False) -> np.ndarray | None:
+        """(F, M, 3) world positions of the capture markers at ``times``, NaN where invalid (None
+        without a capture); ``stabilized``: without the head motion (:meth:`head_motion`)."""
+        prim = self._marker_prim
+        if prim is None:
+            return None
+        if stabilized:
+            return remove_head_motion(self.markers(times), self.head_motion(times))
+        attr = UsdGeom.Points(prim).GetPointsAttr()
+        valid = prim.GetAttribute("primvars:usdface:valid")
+        cache = UsdGeom.XformCache()
+        out = np.empty((len(times), len(self.marker_names), 3))
+        for i, t in enumerate(times):
+            tc = Usd.TimeCode(float(t))
+            cache.SetTime(tc)
+            m = _row(cache.GetLocalToWorldTransform(prim))
+            p = np.asarray(attr.Get(tc), dtype=np.float64)
+            p = p @ m[:3, :3] + m[3, :3]
+            if valid and valid.HasValue():
+                p[~np.asarray(valid.Get(tc), dtype=bool)] = np.nan
+            out[i] = p
+        return out
+
+    def head_motion(self, times) -> np.ndarray:
+        """(F, 4, 4) row-vector transforms of the face's root prim (the default prim above the
+        mesh: its time-sampled ``xformOp:transform`` is the head motion, identity at the neutral
+        frame), identity when it has none. World = stabilised @ H(t)."""
+        out = np.repeat(np.eye(4)[None], len(times), axis=0)
+        root = self.stage.GetDefaultPrim()
+        if not root or not self.prim.GetPath().HasPrefix(root.GetPath()) or not root.IsA(UsdGeom.Xformable):
+            return out
+        xf = UsdGeom.Xformable(root)
+        if not xf.TransformMightBeTimeVarying():
+            m = np.asarray(xf.GetLocalTransformation(Usd.TimeCode.Default()), dtype=np.float64)
+            return np.repeat(m[None], len(times), axis=0)
+        for i, t in enumerate(times):
+            out[i] = np.asarray(xf.GetLocalTransformation(Usd.TimeCode(float(t))), dtype=np.float64)
+        return out
+
+    def transfer_settings(self) -> dict:
+        """Every ``usdface:transfer:*`` value on the face mesh (FaceTransferAPI), JSON strings decoded."""
+        out = {}
+        for attr in self.prim.GetAttributes():
+            name = attr.GetName()
+            if name.startswith("usdface:transfer:") and attr.HasAuthoredValue():
+                v = attr.Get()
+                if isinstance(v, str) and v[:1] in "[{":
+                    try:
+                        v = json.loads(v)
+                    except ValueError:
+                        pass
+                elif hasattr(v, "__len__") and not isinstance(v, str):
+                    v = list(v)
+                out[name.split(":", 2)[2]] = v
+        return out
+
+    def layer_data(self) -> dict:
+        """The root layer's usdface provenance (customLayerData), decoded."""
+        data = dict(self.stage.GetRootLayer().customLayerData.get("usdface", {}))
+        out = {}
+        for k, v in data.items():
+            try:
+                out[k] = json.loads(v) if isinstance(v, str) and v[:1] in "[{" else v
+            except ValueError:
+                out[k] = v
+        return out
+
     def describe(self) -> dict:
         """A JSON-ready summary (for reports and error messages)."""
         return {"mesh": self.mesh_path, "points": self.n_points, "deformation": list(self.deformation),
@@ -488,3 +510,10 @@ def evaluate_points(path_or_stage, times=None, *, space: str = "world", mesh: st
         ev = FaceEvaluator.open(path_or_stage, mesh=mesh)
     times = ev.resolve_times(times)
     return times, ev.points_range(times, space=space)
+
+
+def remove_head_motion(points: np.ndarray, head: np.ndarray) -> np.ndarray:
+    """points (F, K, 3) @ inverse(head (F, 4, 4)), row-vector convention: world points taken back
+    into the stabilised space (:meth:`FaceEvaluator.head_motion`)."""
+    inv = np.linalg.inv(head)
+    return np.einsum("fkj,fjl->fkl", points, inv[:, :3, :3]) + inv[:, None, 3, :3]

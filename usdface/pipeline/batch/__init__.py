@@ -36,7 +36,7 @@ def batch(manifest, *, options: BatchOptions, summary=None, report=None) -> Resu
     # --summary and --report never replace the manifest or what a shot reads (before any work)
     check_batch_outputs(m.path, m.shots, {"--summary": summary, "--report": report_file})
     if report not in (None, False, True):
-        from ...fileutil import check_report_output
+        from ..report import check_report_output
 
         check_report_output(report)  # an unwritable report fails before the shots run
     result = run_batch(m, options, summary_path=summary)
@@ -45,7 +45,7 @@ def batch(manifest, *, options: BatchOptions, summary=None, report=None) -> Resu
         from ..report import batch_report
 
         rep = batch_report(result, None if report is True else report)
-        result["report"] = rep.summary["output"]
-        files["report"] = rep.summary["output"]
+        result["report"] = rep.files["output"]
+        files["report"] = rep.files["output"]
         result["_text"] = list(result.get("_text", [])) + rep.text
     return Result.from_summary(result, files=files)
