@@ -1,0 +1,56 @@
+"""Helpers for the hostile-input tests: run the command (in-process or, where the old code hung,
+as a subprocess with a timeout) and check the one-line rule."""
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+
+def code_root() -> Path:
+    """The source tree of the usdface under test (PYTHONPATH decides; a baseline tree works too)."""
+    import usdface
+
+    return Path(usdface.__file__).resolve().parents[1]
+
+
+def digest(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def run_in_process(capsys, *args) -> tuple[int, list[str]]:
+    """`usdface ARGS` in this process: (exit code, non-empty stderr lines)."""
+    import logging
+
+    from usdface.cli import main
+
+    for handler in list(logging.root.handlers):  # basicConfig in main binds to this test's stderr
+        logging.root.removeHandler(handler)
+    capsys.readouterr()
+    rc = main([os.fsdecode(a) if isinstance(a, bytes) else str(a) for a in args])
+    err = capsys.readouterr().err
+    return rc, [line for line in err.splitlines() if line.strip()]
+
+
+def run_subprocess(*args, timeout: float = 60, cwd=None) -> tuple[int | None, list[str]]:
+    """`python -m usdface ARGS` with a timeout (None as exit code when it had to be killed)."""
+    env = dict(os.environ, PYTHONPATH=str(code_root()) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    argv = [sys.executable, "-m", "usdface", *(a if isinstance(a, bytes) else os.fsencode(str(a)) for a in args)]
+    try:
+        p = subprocess.run(argv, capture_output=True, timeout=timeout, env=env, cwd=cwd)
+    except subprocess.TimeoutExpired:
+        return None, ["(killed after the timeout)"]
+    err = p.stderr.decode("utf-8", "backslashreplace")
+    return p.returncode, [line for line in err.splitlines() if line.strip()]
+
+
+def assert_one_line(rc, lines, *, code: int, command: str, contains=()):
+    """Exit ``code``, exactly one stderr line ``usdface COMMAND: error: ...`` holding ``contains``."""
+    assert rc == code, (rc, lines)
+    assert len(lines) == 1, lines
+    assert lines[0].startswith(f"usdface {command}: error: "), lines
+    for text in contains:
+        assert text in lines[0], (text, lines[0])
+    return lines[0]
