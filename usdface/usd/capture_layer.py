@@ -20,6 +20,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..capture.model import Capture
 from ..errors import InputError, MarkerError
+from ..inputfiles import display_name
 from ..units import METERS_PER_UNIT
 from .layers import describe, open_stage, output_layer, set_provenance, set_stage_metadata, stage_units
 from .schemas import require_registered
@@ -77,7 +78,8 @@ def write_capture_layer(path: str | os.PathLike, capture: Capture, *, prov: dict
         prim.ApplyAPI(MARKER_SET_API)
         prim.GetAttribute("usdface:markerSet:names").Set(Vt.StringArray(list(capture.names)))
         prim.GetAttribute("usdface:markerSet:captureRate").Set(float(capture.rate))
-        prim.GetAttribute("usdface:markerSet:sourceFile").Set(os.path.basename(capture.source))
+        # only recorded, so a name that is not UTF-8 is kept with its odd bytes escaped (\xNN)
+        prim.GetAttribute("usdface:markerSet:sourceFile").Set(display_name(os.path.basename(capture.source)))
         prim.GetAttribute("usdface:markerSet:sourceUnits").Set(capture.units)
         prim.GetAttribute("usdface:markerSet:neutralTime").Set(float(start + capture.neutral_frame))
         dims = next((h.get("dims") for h in capture.history if "dims" in h), 3)

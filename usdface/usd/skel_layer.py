@@ -36,7 +36,7 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from ..errors import InputError
-from .layers import add_sublayer, open_stage, output_layer, set_provenance, set_stage_metadata
+from .layers import add_sublayer, open_layer, open_stage, output_layer, set_provenance, set_stage_metadata
 from .motion import author_head_motion
 from .mesh_layer import find_mesh
 
@@ -212,8 +212,6 @@ def skinned_points(path, *, times=None, stage: Usd.Stage | None = None,
 
 def read_skel_report(path) -> dict:
     """The skinning report stored in a skeleton layer's provenance."""
-    layer = Sdf.Layer.FindOrOpen(os.fspath(path))
-    if layer is None:
-        raise InputError(f"skeleton {path}: cannot be read as USD")
+    layer = open_layer(path, what="skeleton")
     data = dict(layer.customLayerData.get("usdface", {}))
     return json.loads(data.get("skinning", "{}"))
