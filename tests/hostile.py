@@ -34,12 +34,24 @@ def run_in_process(capsys, *args) -> tuple[int, list[str]]:
     return rc, [line for line in err.splitlines() if line.strip()]
 
 
+#: address space a hostile-input subprocess may use (a reader that trusts a lying header would
+#: otherwise allocate tens of GB on a shared machine before failing)
+MEMORY_LIMIT = 4 * 1024**3
+
+
+def _limit_memory():
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT, MEMORY_LIMIT))
+
+
 def run_subprocess(*args, timeout: float = 60, cwd=None) -> tuple[int | None, list[str]]:
-    """`python -m usdface ARGS` with a timeout (None as exit code when it had to be killed)."""
+    """`python -m usdface ARGS` with a timeout (None as exit code when it had to be killed) and
+    at most :data:`MEMORY_LIMIT` of address space."""
     env = dict(os.environ, PYTHONPATH=str(code_root()) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     argv = [sys.executable, "-m", "usdface", *(a if isinstance(a, bytes) else os.fsencode(str(a)) for a in args)]
     try:
-        p = subprocess.run(argv, capture_output=True, timeout=timeout, env=env, cwd=cwd)
+        p = subprocess.run(argv, capture_output=True, timeout=timeout, env=env, cwd=cwd, preexec_fn=_limit_memory)
     except subprocess.TimeoutExpired:
         return None, ["(killed after the timeout)"]
     err = p.stderr.decode("utf-8", "backslashreplace")
