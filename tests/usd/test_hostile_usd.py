@@ -137,3 +137,48 @@ def test_a_non_utf8_capture_file_name_is_recorded_escaped(sample_assets, tmp_pat
     stage = Usd.Stage.Open(str(tmp_path / "c.usdc"))
     prim = stage.GetPrimAtPath("/Capture/Markers")
     assert prim.GetAttribute("usdface:markerSet:sourceFile").Get() == "jaw\\xff.ma"
+
+
+def test_capture_layer_with_a_ragged_points_array(sample_assets, tmp_path, capsys):
+    # issue 20 (5): 10 points at one time and 41 at the others was an np.stack ValueError
+    from pxr import Gf, Usd, Vt
+
+    layer = tmp_path / "ragged.usda"
+    Usd.Stage.Open(str(sample_assets / "capture" / "JawMoCap.usdc")).Export(str(layer))
+    stage = Usd.Stage.Open(str(layer))
+    stage.GetPrimAtPath("/Capture/Markers").GetAttribute("points").Set(Vt.Vec3fArray([Gf.Vec3f(0, 0, 0)] * 10), 5)
+    stage.Save()
+    del stage
+    rc, lines = run_in_process(capsys, "import-capture", layer, "-o", tmp_path / "c.usdc")
+    assert_one_line(rc, lines, code=2, command="import-capture",
+                    contains=(f"capture {layer}: /Capture/Markers has 10 points at time 5 for its 41 marker names",))
+
+
+def test_two_meshes_and_nothing_to_tell_the_face(sample_assets, tmp_path, capsys):
+    """A character file with a head and an eye: refused, naming both (the first was taken silently)."""
+    from pxr import Usd, UsdGeom
+
+    face = Usd.Stage.Open(str(sample_assets / "meshes" / "makehuman_hm08_face_cm.usdc"))
+    src = UsdGeom.Mesh(face.GetPrimAtPath("/Face/Geom"))
+    path = tmp_path / "char.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/Char").GetPrim())
+    for name, pts, counts, idx in (("Head", src.GetPointsAttr().Get(), src.GetFaceVertexCountsAttr().Get(),
+                                    src.GetFaceVertexIndicesAttr().Get()),
+                                   ("EyeL", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])):
+        m = UsdGeom.Mesh.Define(stage, f"/Char/{name}")
+        m.CreatePointsAttr(pts)
+        m.CreateFaceVertexCountsAttr(counts)
+        m.CreateFaceVertexIndicesAttr(idx)
+    stage.Save()
+    del stage
+    rc, lines = run_in_process(capsys, "import-mesh", path, "-o", tmp_path / "m.usdc")
+    assert_one_line(rc, lines, code=2, command="import-mesh",
+                    contains=(f"mesh {path}: 2 Mesh prims under the default prim /Char and none marked as the face: "
+                              "/Char/Head (2020 points), /Char/EyeL (3 points)", "export it alone"))
+    from usdface.usd.mesh_layer import read_mesh_layer
+
+    mesh, _ = read_mesh_layer(path, prim_path="/Char/Head")
+    assert mesh.n_points == 2020
+    with pytest.raises(InputError, match=r"/Char/Nose is not a Mesh prim; its Mesh prims: /Char/Head, /Char/EyeL"):
+        read_mesh_layer(path, prim_path="/Char/Nose")
