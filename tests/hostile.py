@@ -26,10 +26,17 @@ def run_in_process(capsys, *args) -> tuple[int, list[str]]:
 
     from usdface.cli import main
 
-    for handler in list(logging.root.handlers):  # basicConfig in main binds to this test's stderr
-        logging.root.removeHandler(handler)
+    # pytest's own log handlers make main's logging.basicConfig a no-op: show the log on this
+    # test's stderr as the command line would, for this call only
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("usdface: %(levelname)s: %(message)s"))
+    handler.setLevel(logging.WARNING)
+    logging.root.addHandler(handler)
     capsys.readouterr()
-    rc = main([os.fsdecode(a) if isinstance(a, bytes) else str(a) for a in args])
+    try:
+        rc = main([os.fsdecode(a) if isinstance(a, bytes) else str(a) for a in args])
+    finally:
+        logging.root.removeHandler(handler)
     err = capsys.readouterr().err
     return rc, [line for line in err.splitlines() if line.strip()]
 
