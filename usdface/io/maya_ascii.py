@@ -233,12 +233,7 @@ def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None
     _check_key_values(scene, curves, keys, channel_curves, unit)
 
     grid = _TimeGrid.fit(scene, keys, frames_per_second, rate)
-    most_keys = max(t.size for t, _ in keys.values())
-    grid.n_frames = check_read_size(what=source, frames=grid.n_frames, markers=len(markers), rate=grid.rate,
-                    rate_origin="given with --rate" if rate is not None else
-                    f"inferred from keys {1.0 / (grid.key_rate or grid.rate) * frames_per_second:g} "
-                    f"{scene.time_unit} frames apart", samples=most_keys, noun="keys on its longest curve",
-                                    allow=allow)
+    grid.judge(scene, keys, n_markers=len(markers), rate_given=rate is not None, fps=frames_per_second, allow=allow)
     sampled = {cid: grid.sample(times, values) for cid, (times, values) in keys.items()}
 
     def local_translate(node):
@@ -713,6 +708,16 @@ class _TimeGrid:
         return cls(rate=float(rate), key_rate=key_rate, first_key=first, frames_per_unit=frames_per_unit,
                    n_frames=n_frames, start_frame=start_frame,
                    time_offset_seconds=0.0 if abs(offset) < 1e-12 else float(offset))
+
+    def judge(self, scene: _Scene, keys: dict, *, n_markers: int, rate_given: bool, fps: float, allow) -> None:
+        """The grid's rate and frame count against :mod:`usdface.capture.limits`, and the memory
+        the frames need, before any array is made (keys 1e-9 frame apart are 2.4e10 Hz)."""
+        spacing = 1.0 / (self.key_rate or self.rate) * fps
+        origin = "given with --rate" if rate_given else f"inferred from keys {spacing:g} {scene.time_unit} frames apart"
+        most_keys = max(t.size for t, _ in keys.values())
+        self.n_frames = check_read_size(what=scene.source, frames=self.n_frames, markers=n_markers, rate=self.rate,
+                                        rate_origin=origin, samples=most_keys, noun="keys on its longest curve",
+                                        allow=allow)
 
     def sample(self, times: np.ndarray, values: np.ndarray) -> np.ndarray:
         """(n_frames,) values of one curve on the grid: exact at keys on the grid, linear between

@@ -97,27 +97,7 @@ def read_trc(path, *, units: str | None = None, rate: float | None = None, up_ax
     refuse([rate_finding(capture_rate, what=source, origin="declared" if declared_rate else "given with --rate")],
            allow=allow)
 
-    name_cells = lines[3].rstrip("\r\n").split("\t")
-    if len(name_cells) < 2 or name_cells[0].strip() != "Frame#":
-        raise FormatError(f"{source}, line 4: expected 'Frame#<tab>Time<tab><marker names>'")
-    names = [c.strip() for c in name_cells[2::3]]
-    while names and not names[-1]:
-        names.pop()  # trailing tabs
-    if any(not n for n in names):
-        raise FormatError(f"{source}, line 4: empty marker name in column {3 + 3 * names.index('')}")
-    stray = [c.strip() for i, c in enumerate(name_cells[2:]) if i % 3 and c.strip()]
-    if stray:
-        raise FormatError(f"{source}, line 4: marker names must be 3 columns apart; unexpected {stray[0]!r}")
-    if not names:
-        raise MarkerError(f"{source}, line 4: zero markers")
-    if len(names) != n_markers_declared:
-        raise FormatError(f"{source}: header says NumMarkers {n_markers_declared} but line 4 names "
-                          f"{len(names)} markers: {list_names(names)}")
-    seen, dups = set(), set()
-    for name in names:
-        (dups if name in seen else seen).add(name)
-    if dups:
-        raise MarkerError(f"{source}, line 4: duplicate marker names: {list_names(sorted(dups))}")
+    names = _marker_names(lines[3], source, n_markers_declared)
 
     width = 2 + 3 * len(names)
     rows, row_lines = [], []
@@ -206,6 +186,32 @@ def write_trc(path, capture: Capture) -> None:
         out.append(f"{code + 1}\t{format_number(code / capture.rate)}\t" + join_numbers(row, "\t"))
     with open(os.fspath(path), "w", newline="\n", encoding="utf-8") as handle:
         handle.write("\n".join(out) + "\n")
+
+
+def _marker_names(line: str, source: str, declared: int) -> list[str]:
+    """Marker names of line 4 (``Frame#<tab>Time<tab>Name<tab><tab>Name...``), checked."""
+    name_cells = line.rstrip("\r\n").split("\t")
+    if len(name_cells) < 2 or name_cells[0].strip() != "Frame#":
+        raise FormatError(f"{source}, line 4: expected 'Frame#<tab>Time<tab><marker names>'")
+    names = [c.strip() for c in name_cells[2::3]]
+    while names and not names[-1]:
+        names.pop()  # trailing tabs
+    if any(not n for n in names):
+        raise FormatError(f"{source}, line 4: empty marker name in column {3 + 3 * names.index('')}")
+    stray = [c.strip() for i, c in enumerate(name_cells[2:]) if i % 3 and c.strip()]
+    if stray:
+        raise FormatError(f"{source}, line 4: marker names must be 3 columns apart; unexpected {stray[0]!r}")
+    if not names:
+        raise MarkerError(f"{source}, line 4: zero markers")
+    if len(names) != declared:
+        raise FormatError(f"{source}: header says NumMarkers {declared} but line 4 names "
+                          f"{len(names)} markers: {list_names(names)}")
+    seen, dups = set(), set()
+    for name in names:
+        (dups if name in seen else seen).add(name)
+    if dups:
+        raise MarkerError(f"{source}, line 4: duplicate marker names: {list_names(sorted(dups))}")
+    return names
 
 
 def _header_int(header: dict, key: str, source: str) -> int:
