@@ -30,7 +30,6 @@ Do not compose it with the animation layer (``anim.usdc``) of the same take: bot
 from __future__ import annotations
 
 import json
-import os
 
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
