@@ -9,7 +9,6 @@ import struct
 import numpy as np
 import pytest
 
-from usdface.capture.limits import MAX_CAPTURE_FRAMES
 from usdface.errors import FormatError, InputError, PlausibilityError, ResourceError
 from usdface.io.captures import read_capture, write_capture
 
@@ -80,6 +79,8 @@ def test_frame_numbers_beyond_any_time_code(tmp_path):
 
 def test_long_takes_up_to_the_limit_are_read(tmp_path):
     # a dense take is judged by its length: one row per frame, so no sparse-frame finding
+    from usdface.capture.limits import MAX_CAPTURE_FRAMES
+
     csv = _csv(tmp_path / "dense.csv", frames=range(3000))
     assert read_capture(csv).n_frames == 3000
     assert MAX_CAPTURE_FRAMES == 1_000_000

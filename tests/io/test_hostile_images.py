@@ -11,7 +11,6 @@ import pytest
 
 from usdface.errors import FormatError, InputError
 from usdface.io.images import read_float_map, read_image
-from usdface.io.npz import load_npz, npz_members
 
 
 def _npy_header(shape, descr="<f8") -> bytes:
@@ -21,6 +20,8 @@ def _npy_header(shape, descr="<f8") -> bytes:
 
 
 def test_npz_member_announcing_80_gb_is_refused_before_loading(tmp_path):
+    from usdface.io.npz import npz_members
+
     bomb = tmp_path / "model.npz"
     with zipfile.ZipFile(bomb, "w") as z:
         z.writestr("meta.npy", _npy_header((100000, 100000)) + b"\0" * 64)
@@ -34,6 +35,8 @@ def test_npz_member_announcing_80_gb_is_refused_before_loading(tmp_path):
 
 
 def test_npz_of_objects_and_not_a_zip(tmp_path):
+    from usdface.io.npz import load_npz
+
     objects = tmp_path / "o.npz"
     with zipfile.ZipFile(objects, "w") as z:
         z.writestr("a.npy", _npy_header((2,), descr="|O") + b"\0" * 16)
