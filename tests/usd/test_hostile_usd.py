@@ -163,6 +163,7 @@ def test_two_meshes_and_nothing_to_tell_the_face(sample_assets, tmp_path, capsys
     path = tmp_path / "char.usda"
     stage = Usd.Stage.CreateNew(str(path))
     stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/Char").GetPrim())
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)  # a complete file: only the two meshes are wrong
     for name, pts, counts, idx in (("Head", src.GetPointsAttr().Get(), src.GetFaceVertexCountsAttr().Get(),
                                     src.GetFaceVertexIndicesAttr().Get()),
                                    ("EyeL", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])):
