@@ -42,7 +42,8 @@ LAYERS = (
                  "usdface.preview", "usdface.playblast", "usdface.media", "usdface.report")),
     ("io", ("usdface.io",)),
     ("base", ("usdface.errors", "usdface.units", "usdface.fileutil", "usdface.progress", "usdface.numba_cache",
-              "usdface.memory", "usdface.model", "usdface.cache", "usdface.lazy", "usdface")),
+              "usdface.memory", "usdface.model", "usdface.cache", "usdface.lazy", "usdface.inputfiles",
+              "usdface.findings", "usdface")),
 )
 #: third-party modules confined to some packages
 CONFINED = {"pxr": ("usdface.usd", "usdface"), "cv2": ("usdface.io", "usdface.tracking", "usdface.scan",

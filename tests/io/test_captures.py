@@ -93,7 +93,7 @@ def test_missing_and_unreadable(tmp_path, suffix):
         read_capture(tmp_path / f"missing{suffix}")
     folder = tmp_path / f"folder{suffix}"
     folder.mkdir()
-    with pytest.raises(InputError, match=rf"folder{suffix}: not a regular file"):
+    with pytest.raises(InputError, match=rf"folder{suffix}: is a folder, not a file"):
         read_capture(folder)
 
 
@@ -110,7 +110,7 @@ def test_permission_denied(tmp_path, small):
     (".csv", "", FormatError, r"empty\.csv: no header row"),
     (".trc", "", FormatError, r"empty\.trc, line 1: not a TRC file"),
     (".ma", "", FormatError, r"empty\.ma, line 1: not a Maya ASCII file"),
-    (".c3d", "", FormatError, r"empty\.c3d: not a readable C3D file"),
+    (".c3d", "", FormatError, r"empty\.c3d: not a C3D file \(no C3D header"),
 ])
 def test_empty_files(tmp_path, suffix, content, error, message):
     path = tmp_path / f"empty{suffix}"

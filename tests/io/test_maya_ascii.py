@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from usdface.errors import FormatError, InputError, MarkerError, OptionError
+from usdface.errors import FormatError, InputError, MarkerError, OptionError, PlausibilityError
 from usdface.io.maya_ascii import read_maya_ascii
 
 TAKES = {"Jaw": 1590, "Nose": 962, "Eyebrows": 902}
@@ -346,5 +346,10 @@ def test_options_checked(tmp_path):
         read_maya_ascii(path, rate=-5)
     with pytest.raises(OptionError, match=r"--units: unknown unit 'parsec'"):
         read_maya_ascii(path, units="parsec")
-    with pytest.raises(OptionError, match=r"scene\.ma: a rate of 6e\+06 Hz makes 300001 frames .* pass a lower --rate"):
+    with pytest.raises(PlausibilityError, match=r"scene\.ma: a capture rate of 6e\+06 Hz \(given with --rate\) is "
+                                                r"outside the plausible 1-10000 Hz"):
         read_maya_ascii(path, rate=6e6)
+    # accepted, the rate still makes far more frames than the curves have keys
+    with pytest.raises(PlausibilityError, match=r"scene\.ma: its frame numbers span 300,001 frames but it holds 4 "
+                                                r"keys on its longest curve: a typo'd frame number\? \(--allow frame-count"):
+        read_maya_ascii(path, rate=6e6, allow={"rate"})

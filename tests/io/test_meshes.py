@@ -158,11 +158,13 @@ def test_obj_token_forms_negative_indices_and_units(tmp_path):
     assert b.uvs is None and b.units == "cm"
 
 
-def test_obj_with_uvs_on_some_faces_only_drops_them_with_a_warning(tmp_path):
+def test_obj_with_uvs_on_some_faces_only_drops_them_with_a_warning(tmp_path, caplog):
     (tmp_path / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1\nf 2 4 3\n")
-    with pytest.warns(UserWarning, match="only some face corners"):
+    with caplog.at_level("WARNING", logger="usdface"):
         m = read_mesh(tmp_path / "a.obj")
     assert m.uvs is None
+    assert [r.getMessage() for r in caplog.records] == [
+        f"mesh file {tmp_path / 'a.obj'}: only some face corners have texture coordinates; UVs not read"]
 
 
 def test_suffixes_listed():
@@ -171,7 +173,7 @@ def test_suffixes_listed():
 
 # -- errors --------------------------------------------------------------------------------------
 def test_missing_file(tmp_path):
-    with pytest.raises(InputError, match=r"mesh file .*nope\.obj does not exist"):
+    with pytest.raises(InputError, match=r"mesh file .*nope\.obj: no such file"):
         read_mesh(tmp_path / "nope.obj")
 
 
@@ -228,7 +230,7 @@ def test_obj_index_out_of_range(tmp_path):
 def test_malformed_ply_and_off(tmp_path):
     p = tmp_path / "bad.ply"
     p.write_text("this is not a ply file\n")
-    with pytest.raises(FormatError, match=r"mesh file .*bad\.ply could not be read"):
+    with pytest.raises(FormatError, match=r"mesh file .*bad\.ply: not a PLY file"):
         read_mesh(p)
     o = tmp_path / "bad.off"
     o.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n")
@@ -242,7 +244,7 @@ def test_malformed_ply_and_off(tmp_path):
 def test_directory_is_not_a_mesh(tmp_path):
     d = tmp_path / "dir.obj"
     d.mkdir()
-    with pytest.raises(InputError, match="is not a file"):
+    with pytest.raises(InputError, match=r"dir\.obj: is a folder, not a file"):
         read_mesh(d)
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from usdface.cli import main
+from usdface.errors import ResourceError
 from usdface.fileutil import FAULT_ENV, file_digest
 from usdface.pipeline.shot_commit import KILL_ENV, LOCK_NAME, OutdirLock
 from usdface.usd.shot_record import leftovers
@@ -148,10 +149,17 @@ def test_mixed_shot_is_rejected_by_check(old_shot, tmp_path, capsys):
 
 def test_resample_refused_with_a_size_estimate(tmp_path, capsys):
     out = tmp_path / "r"
-    assert main(RUN + ["--resample", "1000000", "-o", str(out)]) == 1
+    # 1 MHz is an implausible rate (usdface.io.limits): refused before the size is even estimated
+    assert main(RUN + ["--resample", "1000000", "-o", str(out)]) == 2
     line = _one_line_error(capsys.readouterr().err, "run")
-    assert "26,483,334 frames x 41 markers" in line and "of memory but only" in line and "GB" in line, line
+    assert "--resample 1e+06 Hz from 60 Hz (1590 frames -> 26483334): 1e+06 Hz is outside the plausible" in line, line
     assert not out.exists()
+    # accepted, it is refused with the memory it would need
+    from usdface.capture.timing import resample
+    from usdface.io.captures import read_capture
+
+    with pytest.raises(ResourceError, match=r"26,483,334 frames x 41 markers, which needs about .* of memory but"):
+        resample(read_capture(TAKE), rate=1e6, allow={"resample"})
 
 
 def test_second_run_into_a_locked_folder_is_refused(old_shot, tmp_path, capsys):

@@ -27,7 +27,7 @@ code               severity  finding                                            
                              the others
 ``face-size``      error     the markers (or the mesh) span less than 3 cm or more than      ``--allow face-size``
                              80 cm in the declared units (metres declared cm...)
-``speed``          warning   a marker moving faster than 10 face spans per second            ``--allow speed``
+``speed``          warning   a marker moving faster than 6 face spans per second             ``--allow speed``
                              (about 2 m/s on a human face) between two frames
 ``stabilize``      warning   stabilisation did not reduce the rigid rotation or translation  ``--allow stabilize``
                              of the held-out markers
@@ -46,6 +46,10 @@ open); markers move at most 23 cm/s (1.2 spans/s); the largest nearest-marker di
 median; the layout fit leaves an rms of 6.2% of the face (mouth corners 7.3 cm apart on the
 performer, 5 cm on the meshes). Each bound leaves a margin of 3x or more over these.
 
+Three more checks bound a capture's timing before a reader allocates anything: ``rate``,
+``frame-count`` and ``resample`` (:mod:`usdface.io.limits`). A value beyond float32's range
+in any capture file (1e308 would be stored as inf) is a malformed file, refused by the reader.
+
 A Maya key far beyond any position (more than 1 km from the origin, or not finite; e.g. 9.9e30)
 is not a finding but a malformed file: :func:`usdface.io.maya_ascii.read_maya_ascii` raises
 FormatError naming the curve, key and line.
@@ -53,12 +57,13 @@ FormatError naming the curve, key and line.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import OptionError, PlausibilityError, list_names
+from ..errors import list_names
 from ..units import METERS_PER_UNIT
+from ..findings import CHECKS, Check, Finding, parse_allow, refuse, report  # noqa: F401 (the public names)
+from ..io.limits import rate_finding
 from ..model.capture import Capture
 
 log = logging.getLogger("usdface")
@@ -71,34 +76,11 @@ __all__ = [
     "stabilize_finding",
     "face_size_finding",
     "parse_allow",
+    "refuse",
     "report",
     "FACE_SPAN_CM",
 ]
 
-
-@dataclass(frozen=True)
-class Check:
-    """One plausibility check: its code, default severity, and what accepts or changes it."""
-
-    code: str
-    severity: str  # "error" | "warning"
-    override: str
-    summary: str
-
-
-CHECKS: dict[str, Check] = {c.code: c for c in (
-    Check("zeros", "warning", "--keep-zeros", "exact (0, 0, 0) samples of a C3D file read as gaps"),
-    Check("outliers", "error", "--drop-outliers or --allow outliers",
-          "samples far from where the neighbouring markers put them"),
-    Check("far-markers", "error", "--allow far-markers", "markers far from every other marker all take long"),
-    Check("mixed-units", "error", "--allow mixed-units", "some markers a unit factor larger than the others"),
-    Check("face-size", "error", "--allow face-size", "markers or mesh span outside 3-80 cm in the declared units"),
-    Check("speed", "warning", "--allow speed", "markers faster than 10 face spans per second"),
-    Check("stabilize", "warning", "--allow stabilize", "stabilisation that does not reduce the held-out rigid motion"),
-    Check("layout-distance", "error", "--allow layout-distance", "layout points far off the mesh surface"),
-    Check("fit-residual", "error", "--allow fit-residual", "markers far from their layout points after the fit"),
-    Check("unit-scale", "error", "--allow unit-scale", "a fitted capture-to-mesh scale contradicting the units"),
-)}
 
 #: plausible span of a face's markers (or a face mesh), cm
 FACE_SPAN_CM = (3.0, 80.0)
@@ -113,78 +95,6 @@ MAX_SPANS_PER_SECOND = 6.0
 N_NEIGHBOURS = 6
 #: how many markers / frames a message lists before abbreviating
 _LIST = 6
-
-
-@dataclass(frozen=True)
-class Finding:
-    """One plausibility finding.
-
-    Attributes
-    ----------
-    code : str
-        A key of :data:`CHECKS`.
-    severity : str
-        ``"error"`` or ``"warning"`` (as found; :func:`report` applies ``--allow``).
-    message : str
-        One line naming the file, markers, frames and the option that accepts it.
-    markers : tuple of str
-    frames : tuple of int
-        Frame numbers (time codes) concerned, if any.
-    samples : ndarray (F, M) bool, optional
-        For ``outliers``: the offending samples (used by :func:`drop_outliers`).
-    """
-
-    code: str
-    severity: str
-    message: str
-    markers: tuple = ()
-    frames: tuple = ()
-    samples: np.ndarray | None = field(default=None, repr=False, compare=False)
-
-    def summary(self, *, allowed: bool = False) -> dict:
-        return {"code": self.code, "severity": self.severity, "allowed": allowed, "message": self.message,
-                "markers": list(self.markers), "frames": [int(f) for f in self.frames[:100]]}
-
-
-def parse_allow(values) -> frozenset:
-    """Validate ``--allow`` values (codes, lists, or comma-separated text) into a set of codes."""
-    if values is None:
-        return frozenset()
-    if isinstance(values, str):
-        values = [values]
-    codes = set()
-    for v in values:
-        for code in str(v).split(","):
-            code = code.strip()
-            if not code:
-                continue
-            if code not in CHECKS:
-                raise OptionError(f"--allow {code}: not a plausibility check; known: {', '.join(CHECKS)}")
-            codes.add(code)
-    return frozenset(codes)
-
-
-def report(findings, *, allow=frozenset(), what: str = "") -> list[dict]:
-    """Apply ``allow`` to ``findings``: raise on errors not allowed, log the rest.
-
-    Returns the findings as JSON-ready dicts (for the command's summary). Raises
-    :class:`~usdface.errors.PlausibilityError` with every unaccepted error in one message.
-    """
-    allow = parse_allow(allow)
-    errors = [f for f in findings if f.severity == "error" and f.code not in allow]
-    if errors:
-        raise PlausibilityError("; ".join(f.message for f in errors), findings=errors)
-    out = []
-    for f in findings:
-        allowed = f.code in allow
-        if f.severity == "error":
-            log.warning("%s (accepted by --allow %s)", f.message, f.code)
-        elif allowed:
-            log.info("%s", f.message)
-        else:
-            log.warning("%s", f.message)
-        out.append(f.summary(allowed=allowed))
-    return out
 
 
 # -- helpers -----------------------------------------------------------------------------------
@@ -265,12 +175,15 @@ def check_capture(capture: Capture, *, check_speed: bool = True) -> list[Finding
     Returns
     -------
     list of Finding
-        Zeros read as gaps (from the reader's history), mixed units, far markers, outliers,
-        face size, speed; in that order. After a ``mixed-units`` finding the later checks judge
+        Rate (:mod:`usdface.io.limits`), zeros read as gaps (from the reader's history),
+        mixed units, far markers, outliers, face size, speed; in that order. After a ``mixed-units`` finding the later checks judge
         the data with the odd markers scaled into the declared units, so they report what else
         is wrong rather than the same fault again.
     """
     findings: list[Finding] = []
+    rate = rate_finding(capture.rate, what=_where(capture), origin="its rate")
+    if rate is not None:
+        findings.append(rate)
     findings += _zeros_finding(capture)
     pos = capture.positions
     m_count = capture.n_markers

@@ -16,6 +16,8 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
 from ..errors import OptionError
+from ..findings import refuse
+from ..io.limits import resample_finding
 from ..model.capture import Capture
 from .rigid import to_matrix
 
@@ -175,7 +177,7 @@ def _resample_motion(head, u, method):
     return to_matrix(r, 1.0, t)
 
 
-def resample(capture: Capture, *, rate: float, method: str = "cubic") -> Capture:
+def resample(capture: Capture, *, rate: float, method: str = "cubic", allow=frozenset()) -> Capture:
     """Resample a capture to another rate over the same time span.
 
     Parameters
@@ -188,6 +190,9 @@ def resample(capture: Capture, *, rate: float, method: str = "cubic") -> Capture
         Interpolation of positions within each valid run (cubic spline, not-a-knot; runs of 2
         samples are linear) and of ``head_motion`` (rotation spline / slerp for rotations, cubic /
         linear for translations).
+    allow : set of str
+        Plausibility codes accepted (``"resample"``: a rate outside 1-10000 Hz, a factor beyond
+        100x either way or fewer than 2 frames left, see :mod:`usdface.io.limits`).
 
     Returns
     -------
@@ -206,6 +211,9 @@ def resample(capture: Capture, *, rate: float, method: str = "cubic") -> Capture
         raise OptionError(f"resample: rate must be a positive number of Hz; got {rate!r}")
     rate = float(rate)
     frames, need = resample_memory(capture, rate)
+    where = f"capture {capture.source}" if capture.source else "capture"
+    refuse([resample_finding(frames=capture.n_frames, rate=capture.rate, new_frames=frames, new_rate=rate,
+                             what=where)], allow=allow)
     if frames > capture.n_frames:  # refuse an impossible rate with its size, before allocating
         from ..memory import check_memory
 

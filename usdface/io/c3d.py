@@ -21,6 +21,7 @@ truncated data section without complaint).
 """
 from __future__ import annotations
 
+import math
 import os
 import struct
 import tempfile
@@ -28,8 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..findings import refuse
+from ..io.limits import check_read_size, rate_finding
 from ..model.capture import Capture
 from ..errors import FormatError, MarkerError
+from ..inputfiles import FLOAT32_MAX, first_beyond_float32
+from .c3d_header import read_layout
 from .captures import (
     check_input_file, check_up_axis, resolve_rate, resolve_units, unit_from_text, y_up_to_z_up, z_up_to_y_up,
 )
@@ -46,7 +51,7 @@ def _ezc3d():
 
 
 def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_axis: str | None = "Z",
-             keep_zeros: bool = False) -> Capture:
+             keep_zeros: bool = False, allow=frozenset()) -> Capture:
     """Read the 3D marker points of a ``.c3d`` file.
 
     Parameters
@@ -61,6 +66,8 @@ def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_ax
         Up axis of the file's data; default Z (the C3D convention), rotated to Y-up.
     keep_zeros : bool
         Keep samples at exactly (0, 0, 0) as positions (default False: they are gaps).
+    allow : set of str
+        Plausibility codes accepted (``rate``, ``frame-count``: :mod:`usdface.io.limits`).
 
     Returns
     -------
@@ -78,6 +85,7 @@ def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_ax
     source = os.fspath(path)
     up = check_up_axis(up_axis) or "Z"
     file = check_input_file(path)
+    _check_announced(file, source, allow)
     ezc3d = _ezc3d()
     try:
         c3d = ezc3d.c3d(str(file))
@@ -115,6 +123,12 @@ def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_ax
     unit = resolve_units(declared_unit, units, source=source)
     capture_rate = resolve_rate(declared_rate, rate, source=source)
 
+    at = first_beyond_float32(points[:3])
+    if at is not None:
+        axis, marker, frame = at
+        raise FormatError(f"{source}: point {labels[marker]!r} at frame {frame} has {'xyz'[axis]} = "
+                          f"{points[axis, marker, frame]:g}, beyond the range of the float32 positions USD stores "
+                          f"(|x| <= {FLOAT32_MAX:.4g}): the file is corrupt")
     positions = points[:3].transpose(2, 1, 0).copy()  # (F, M, 3)
     residuals = np.asarray(c3d["data"]["meta_points"]["residuals"])
     invalid = ~np.isfinite(positions).all(axis=2)
@@ -137,6 +151,31 @@ def read_c3d(path, *, units: str | None = None, rate: float | None = None, up_ax
     )
     capture.check_not_all_invalid()
     return capture
+
+
+#: bytes ezc3d holds per point value and per analog sample while reading (doubles, nested vectors)
+_EZC3D_BYTES_PER_POINT_FRAME = 4 * 8 * 3
+_EZC3D_BYTES_PER_ANALOG_SAMPLE = 200
+
+
+def _check_announced(file: Path, source: str, allow) -> None:
+    """Before ezc3d reads the file: its header's counts against its size, the frame count and
+    rate against :mod:`usdface.io.limits`, and what ezc3d will allocate against memory."""
+    from ..memory import check_memory
+
+    layout = read_layout(file, source)
+    size = file.stat().st_size
+    if layout.data_bytes > size:
+        raise FormatError(f"{source}: the header announces {layout.frames:,} frames of {layout.points:,} points"
+                          + (f" and {layout.analog_channels} analog channels" if layout.analog_channels else "")
+                          + f" ({layout.data_bytes:,} bytes) but the file has {size:,} bytes: it is truncated")
+    if layout.point_rate:
+        refuse([rate_finding(layout.point_rate, what=source, origin="POINT:RATE")], allow=allow)
+    check_read_size(what=source, frames=layout.frames, markers=max(layout.points, 1), allow=allow)
+    analog = layout.frames * math.ceil(layout.analog_ratio) * (8 * layout.analog_channels + _EZC3D_BYTES_PER_ANALOG_SAMPLE)
+    check_memory(layout.frames * layout.points * _EZC3D_BYTES_PER_POINT_FRAME + analog,
+                 what=f"{source}: reading {layout.frames:,} frames of {layout.points:,} points and "
+                      f"{layout.analog_channels} analog channels", hint="read a smaller file")
 
 
 def write_c3d(path, capture: Capture) -> None:

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..model.capture import Capture
 from ..errors import FormatError, InputError, OptionError
+from ..inputfiles import FLOAT32_MAX, check_input_file as _check_input_file, first_beyond_float32
 from ..units import METERS_PER_UNIT
 
 #: suffix -> (module, reader function, writer function or None, default source up axis)
@@ -59,7 +60,7 @@ def _format_for(path, suffixes) -> tuple:
 
 
 def read_capture(path, *, units: str | None = None, rate: float | None = None,
-                 up_axis: str | None = None, keep_zeros: bool = False) -> Capture:
+                 up_axis: str | None = None, keep_zeros: bool = False, allow=frozenset()) -> Capture:
     """Read a marker capture file, choosing the reader by suffix.
 
     Parameters
@@ -80,6 +81,10 @@ def read_capture(path, *, units: str | None = None, rate: float | None = None,
     keep_zeros : bool
         C3D only: keep samples at exactly (0, 0, 0) as positions (default: they are gaps, the
         usual C3D gap code; see :mod:`usdface.io.c3d`).
+    allow : set of str
+        Plausibility codes the reader accepts (``rate``, ``frame-count``; see
+        :mod:`usdface.io.limits`): the readers judge a capture's rate and frame numbers
+        before they allocate anything.
 
     Returns
     -------
@@ -96,19 +101,23 @@ def read_capture(path, *, units: str | None = None, rate: float | None = None,
         Zero markers or frames, duplicate marker names, a marker without any valid sample.
     OptionError
         A missing or conflicting ``units``/``rate``, a bad ``up_axis``.
+    PlausibilityError
+        An implausible rate or frame count not accepted by ``allow``.
+    ResourceError
+        The capture's frames would not fit in memory.
     """
     module_name, reader_name, _, default_up = _format_for(path, CAPTURE_SUFFIXES)
     up = check_up_axis(up_axis)
     reader = getattr(importlib.import_module(module_name), reader_name)
     if module_name.endswith(".maya_ascii"):
         # Maya scenes carry their own up axis convention (Y); an explicit Z override still applies.
-        capture = reader(path, units=units, rate=rate)
+        capture = reader(path, units=units, rate=rate, allow=allow)
         if up == "Z":
             capture = capture.replace(positions=z_up_to_y_up(capture.positions))
     elif module_name.endswith(".c3d"):
-        capture = reader(path, units=units, rate=rate, up_axis=up or default_up, keep_zeros=keep_zeros)
+        capture = reader(path, units=units, rate=rate, up_axis=up or default_up, keep_zeros=keep_zeros, allow=allow)
     else:
-        capture = reader(path, units=units, rate=rate, up_axis=up or default_up)
+        capture = reader(path, units=units, rate=rate, up_axis=up or default_up, allow=allow)
     return capture
 
 
@@ -126,16 +135,28 @@ def write_capture(path, capture: Capture) -> Path:
 
 # -- shared helpers for the format modules ------------------------------------------------------
 
+#: frame numbers (time codes) a capture may have: USD stores time codes as doubles, usdface's
+#: frame arithmetic as int64; a frame number beyond this is a corrupt value, not a take
+MAX_TIME_CODE = 2**31 - 1
+
+
 def check_input_file(path) -> Path:
-    """Return ``path`` as a Path if it is a readable regular file, else raise InputError."""
-    p = Path(os.fspath(path))
-    if not p.exists():
-        raise InputError(f"{os.fspath(path)}: no such file")
-    if not p.is_file():
-        raise InputError(f"{os.fspath(path)}: not a regular file")
-    if not os.access(p, os.R_OK):
-        raise InputError(f"{os.fspath(path)}: file is not readable (permission denied)")
-    return p
+    """Return ``path`` as a Path if it is a readable regular file, else raise InputError
+    (named pipes, devices, sockets and folders named as such: :func:`usdface.inputfiles.check_input_file`)."""
+    return _check_input_file(path)
+
+
+def check_float32_cells(table: np.ndarray, *, source, lines: list[int], columns: list[str]) -> None:
+    """FormatError naming the line and column of the first value of ``table`` (rows x columns)
+    beyond float32's finite range (inf included; NaN is an invalid sample)."""
+    at = first_beyond_float32(table)
+    if at is None:
+        return
+    row, col = at
+    name = f"column {columns[col]!r}" if col < len(columns) else f"column {col + 1}"
+    raise FormatError(f"{os.fspath(source)}, line {lines[row]}: {name}: {table[row, col]:g} is beyond the range of the "
+                      f"float32 positions USD stores (|x| <= {FLOAT32_MAX:.4g}); an invalid sample is an empty "
+                      f"cell or NaN")
 
 
 def read_text(path) -> str:

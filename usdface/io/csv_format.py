@@ -54,8 +54,11 @@ from ..model.capture import Capture
 from ..errors import FormatError, MarkerError, OptionError
 from ..errors import list_names
 from ..units import METERS_PER_UNIT
+from ..findings import refuse
+from ..io.limits import check_read_size, rate_finding
 from .captures import (
-    cells_to_float, check_up_axis, format_number, join_numbers, read_text, resolve_rate, resolve_units, unit_from_text, z_up_to_y_up,
+    MAX_TIME_CODE, cells_to_float, check_float32_cells, check_up_axis, format_number, join_numbers, read_text,
+    resolve_rate, resolve_units, unit_from_text, z_up_to_y_up,
 )
 
 __all__ = ["read_csv", "write_csv", "CSV_TIME_TOLERANCE"]
@@ -68,7 +71,7 @@ _COORD = re.compile(r"^(.+)_([xyzXYZ])$")
 
 
 def read_csv(path, *, units: str | None = None, rate: float | None = None,
-             up_axis: str | None = "Y") -> Capture:
+             up_axis: str | None = "Y", allow=frozenset()) -> Capture:
     """Read a usdface capture CSV (module docstring: the specification).
 
     Parameters
@@ -81,6 +84,8 @@ def read_csv(path, *, units: str | None = None, rate: float | None = None,
         Capture rate in Hz when the file does not declare one (``--rate``); must agree when it does.
     up_axis : {"Y", "Z"}, optional
         Up axis of the data in the file; Z-up is rotated to Y-up, (x, y, z) -> (x, z, -y).
+    allow : set of str
+        Plausibility codes accepted (``rate``, ``frame-count``: :mod:`usdface.io.limits`).
 
     Returns
     -------
@@ -100,6 +105,9 @@ def read_csv(path, *, units: str | None = None, rate: float | None = None,
     declared, first = _read_declaration(lines, source)
     unit = resolve_units(declared.get("units"), units, source=source)
     capture_rate = resolve_rate(declared.get("rate"), rate, source=source)
+    # the rate turns a time column into frame numbers: judge it before they are computed
+    rate_origin = "declared" if "rate" in declared else "given with --rate"
+    refuse([rate_finding(capture_rate, what=source, origin=rate_origin)], allow=allow)
 
     rows, line_numbers = [], []
     reader = csv.reader(io.StringIO("\n".join(lines[first:])))
@@ -133,6 +141,7 @@ def read_csv(path, *, units: str | None = None, rate: float | None = None,
     else:
         names, dims = _wide_header(header, header_line, source)
         table = cells_to_float([r[1:] for r in body], source=source, first_line=body_lines[0], columns=header[1:])
+        check_float32_cells(table, source=source, lines=body_lines, columns=header[1:])
         times = [r[0] for r in body]
         frames = _frames(times, body_lines, source, capture_rate, time_kind)
         coords = table.reshape(len(body), len(names), dims)
@@ -144,7 +153,10 @@ def read_csv(path, *, units: str | None = None, rate: float | None = None,
             raise FormatError(f"{source}, line {body_lines[i]}: frame {frames[i]} is listed twice")
 
     start = int(frames.min())
-    n_frames = int(frames.max()) - start + 1
+    far = int(np.argmax(np.abs(frames - np.median(frames))))
+    n_frames = check_read_size(what=source, frames=int(frames.max()) - start + 1, markers=len(names),
+                               samples=int(np.unique(frames).size), detail=f" (line {body_lines[far]}: frame "
+                               f"{frames[far]})", allow=allow)
     positions = np.full((n_frames, len(names), 3), np.nan)
     if form == "wide":
         positions[frames - start, :, :dims] = coords
@@ -291,6 +303,11 @@ def _frames(cells: list[str], lines: list[int], source: str, rate: float, kind: 
                 ok = False
             if not ok:
                 raise FormatError(f"{source}, line {line}: {kind} {c.strip()!r} is not a number")
+    far = np.flatnonzero(np.abs(values * (rate if kind == "time" else 1.0)) > MAX_TIME_CODE)
+    if far.size:
+        i = int(far[0])
+        raise FormatError(f"{source}, line {lines[i]}: {kind} {cells[i].strip()} is beyond the time codes usdface "
+                          f"stores (frames within +-{MAX_TIME_CODE:,})")
     if kind == "frame":
         frames = np.rint(values)
         bad = np.flatnonzero(frames != values)
@@ -321,6 +338,7 @@ def _long_form(body, lines, header, source, rate, kind):
     marker_index = rank[inverse]
     names = [str(n) for n in unique[appearance]]
     values = cells_to_float([r[2:] for r in body], source=source, first_line=lines[0], columns=header[2:])
+    check_float32_cells(values, source=source, lines=lines, columns=header[2:])
     key = (frames - frames.min()) * len(names) + marker_index
     order = np.argsort(key, kind="stable")
     dup = np.flatnonzero(np.diff(key[order]) == 0)

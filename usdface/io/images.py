@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, InputError, OptionError, UsdFaceError
+from ..inputfiles import check_input_file
 
 __all__ = ["IMAGE_SUFFIXES", "FLOAT_MAP_SUFFIXES", "read_image", "write_image", "read_float_map",
            "write_float_map", "check_image_output"]
@@ -89,9 +90,7 @@ def read_image(path, *, gray: bool = False, rgb: bool = False) -> np.ndarray:
         Missing or unreadable file.
     """
     cv2 = _cv2()
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"image {p}: no such file")
+    p = check_input_file(path, label=f"image {path}")
     data = np.fromfile(str(p), dtype=np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if img is None:
@@ -145,16 +144,24 @@ def _write_pfm(path: Path, a: np.ndarray) -> None:
 
 def _read_pfm(path: Path) -> np.ndarray:
     with open(path, "rb") as f:
-        kind = f.readline().strip()
+        kind = f.readline(16).strip()
         if kind not in (b"Pf", b"PF"):
             raise FormatError(f"float map {path}: not a PFM file")
-        dims = f.readline().split()
-        scale = float(f.readline())
-        w, h = int(dims[0]), int(dims[1])
+        try:
+            dims = f.readline(64).split()
+            scale = float(f.readline(64))
+            w, h = int(dims[0]), int(dims[1])
+            if w <= 0 or h <= 0 or scale == 0 or not np.isfinite(scale):
+                raise ValueError
+        except (ValueError, IndexError):
+            raise FormatError(f"float map {path}: PFM header needs 'width height' (> 0) and a non-zero "
+                              f"scale") from None
         ch = 3 if kind == b"PF" else 1
+        size = path.stat().st_size - f.tell()
+        if size != 4 * w * h * ch:  # before reading: the header's size against the file's
+            raise FormatError(f"float map {path}: the header announces {w}x{h}x{ch} floats ({4 * w * h * ch:,} "
+                              f"bytes) but the file holds {size:,} bytes")
         a = np.frombuffer(f.read(), dtype="<f4" if scale < 0 else ">f4")
-    if a.size != w * h * ch:
-        raise FormatError(f"float map {path}: expected {w}x{h}x{ch} floats, found {a.size}")
     a = a.reshape(h, w, ch)[::-1]
     return np.ascontiguousarray(a[..., 0] if ch == 1 else a, dtype=np.float32)
 
@@ -211,9 +218,7 @@ def read_float_map(path, *, key: str | None = None) -> np.ndarray:
     -------
     ndarray, shape (H, W), float32
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"float map {p}: no such file")
+    p = check_input_file(path, label=f"float map {path}")
     suffix = p.suffix.lower()
     if suffix == ".exr":
         oiio = _oiio()
@@ -227,15 +232,19 @@ def read_float_map(path, *, key: str | None = None) -> np.ndarray:
     if suffix == ".pfm":
         return _read_pfm(p)
     if suffix == ".npy":
-        a = np.load(p, allow_pickle=False)
+        try:  # a header announcing more than the file holds fails here, before any allocation
+            a = np.load(p, allow_pickle=False, mmap_mode="r")
+        except (ValueError, OSError) as exc:
+            raise FormatError(f"float map {p}: not a readable .npy array ({exc})") from None
     elif suffix == ".npz":
-        with np.load(p, allow_pickle=False) as z:
-            names = list(z.keys())
-            if not names:
-                raise FormatError(f"float map {p}: the archive is empty")
-            if key is not None and key not in names:
-                raise FormatError(f"float map {p}: no array {key!r}; it has {', '.join(names)}")
-            a = z[key or names[0]]
+        from .npz import load_npz, npz_members
+
+        names = list(npz_members(p, label=f"float map {p}"))
+        if not names:
+            raise FormatError(f"float map {p}: the archive is empty")
+        if key is not None and key not in names:
+            raise FormatError(f"float map {p}: no array {key!r}; it has {', '.join(names)}")
+        a = load_npz(p, label=f"float map {p}")[key or names[0]]
     else:
         cv2 = _cv2()
         a = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_UNCHANGED)

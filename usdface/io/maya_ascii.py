@@ -57,8 +57,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..model.capture import Capture
-from ..errors import FormatError, MarkerError, OptionError
+from ..errors import FormatError, MarkerError
 from ..errors import list_names
+from ..io.limits import check_read_size
 from .captures import check_rate_option, read_text, resolve_units
 
 __all__ = ["read_maya_ascii", "MAYA_TIME_UNITS", "MAYA_LINEAR_UNITS"]
@@ -163,7 +164,7 @@ class _Scene:
         return candidates[0] if candidates else None
 
 
-def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None) -> Capture:
+def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None, allow=frozenset()) -> Capture:
     """Read marker motion from a Maya ASCII scene whose markers are transforms animated by curves.
 
     Parameters
@@ -175,6 +176,9 @@ def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None
         different unit is an OptionError (positions are never rescaled).
     rate : float, optional
         Capture rate in Hz of the output grid. Default: inferred from the key spacing.
+    allow : set of str
+        Plausibility codes accepted (``rate``, ``frame-count``: :mod:`usdface.io.limits`),
+        judged on the grid before it is sampled.
 
     Returns
     -------
@@ -229,6 +233,7 @@ def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None
     _check_key_values(scene, curves, keys, channel_curves, unit)
 
     grid = _TimeGrid.fit(scene, keys, frames_per_second, rate)
+    grid.judge(scene, keys, n_markers=len(markers), rate_given=rate is not None, fps=frames_per_second, allow=allow)
     sampled = {cid: grid.sample(times, values) for cid, (times, values) in keys.items()}
 
     def local_translate(node):
@@ -694,17 +699,25 @@ class _TimeGrid:
         first = min(float(t[0]) for t, _ in keys.values())
         last = max(float(t[-1]) for t, _ in keys.values())
         frames_per_unit = rate / fps
-        n_frames = int(math.floor((last - first) * frames_per_unit + _ON_GRID_TOLERANCE)) + 1
-        most_keys = max(t.size for t, _ in keys.values())
-        if n_frames > 100 * most_keys + 1000:  # a typo'd --rate would otherwise exhaust memory
-            raise OptionError(f"{scene.source}: a rate of {rate:g} Hz makes {n_frames} frames out of curves with at "
-                              f"most {most_keys} keys (key rate {key_rate or float('nan'):g} Hz); pass a lower --rate")
+        # judged (rate, frame-count, memory) by the reader before any array is made
+        span = (last - first) * frames_per_unit + _ON_GRID_TOLERANCE
+        n_frames = math.floor(span) + 1 if math.isfinite(span) else math.inf
         start = first / fps * rate
         start_frame = int(round(start))
         offset = (start - start_frame) / rate
         return cls(rate=float(rate), key_rate=key_rate, first_key=first, frames_per_unit=frames_per_unit,
                    n_frames=n_frames, start_frame=start_frame,
                    time_offset_seconds=0.0 if abs(offset) < 1e-12 else float(offset))
+
+    def judge(self, scene: _Scene, keys: dict, *, n_markers: int, rate_given: bool, fps: float, allow) -> None:
+        """The grid's rate and frame count against :mod:`usdface.io.limits`, and the memory
+        the frames need, before any array is made (keys 1e-9 frame apart are 2.4e10 Hz)."""
+        spacing = 1.0 / (self.key_rate or self.rate) * fps
+        origin = "given with --rate" if rate_given else f"inferred from keys {spacing:g} {scene.time_unit} frames apart"
+        most_keys = max(t.size for t, _ in keys.values())
+        self.n_frames = check_read_size(what=scene.source, frames=self.n_frames, markers=n_markers, rate=self.rate,
+                                        rate_origin=origin, samples=most_keys, noun="keys on its longest curve",
+                                        allow=allow)
 
     def sample(self, times: np.ndarray, values: np.ndarray) -> np.ndarray:
         """(n_frames,) values of one curve on the grid: exact at keys on the grid, linear between

@@ -29,16 +29,19 @@ or ``comment Units: cm`` (PLY header) is honoured; else the mesh is taken to be 
 """
 from __future__ import annotations
 
+import logging
 import os
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FormatError, InputError, MeshError, OptionError
+from ..inputfiles import FLOAT32_MAX, check_input_file, first_beyond_float32
 from ..model.mesh import FaceMesh
 from ..units import METERS_PER_UNIT
+
+log = logging.getLogger("usdface")
 
 __all__ = ["MESH_SUFFIXES", "DEFAULT_UNITS", "read_mesh"]
 
@@ -93,26 +96,25 @@ def read_mesh(path, *, units: str | None = None, check_degenerate: bool = True) 
     path = Path(os.fspath(path))
     if units is not None and units not in METERS_PER_UNIT:
         raise OptionError(f"units: unknown unit {units!r} for {path}; expected one of {', '.join(METERS_PER_UNIT)}")
-    if not path.exists():
-        raise InputError(f"mesh file {path} does not exist")
-    if not path.is_file():
-        raise InputError(f"mesh file {path} is not a file")
+    label = f"mesh file {path}"
+    check_input_file(path, label=label)
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise InputError(
             f"mesh file {path}: unknown suffix {path.suffix or '(none)'!r}; expected one of {', '.join(MESH_SUFFIXES)}"
         )
     if suffix == ".obj":
-        data = _read_obj(path)
+        data = _read_obj(path, units_given=units is not None)
     elif suffix == ".off" and _is_ascii_off(path):
-        data = _read_off(path)
+        data = _read_off(path, units_given=units is not None)
     else:
-        data = _read_pymeshlab(path)
+        data = _read_pymeshlab(path, label, units is not None)
     points, counts, indices, uvs, uv_indices, file_units = data
     if counts.size == 0:
         raise MeshError(f"mesh file {path} has no faces ({points.shape[0]} vertices)")
     if points.shape[0] == 0:
         raise MeshError(f"mesh file {path} has no vertices")
+    _check_coordinates(points, path, suffix)
     mesh = FaceMesh(
         points=points,
         face_vertex_counts=counts,
@@ -135,13 +137,39 @@ def _prim_name(stem: str) -> str:
     return "_" + name if name[0].isdigit() else name
 
 
-def _units_from_comment(line: str, path: Path) -> str | None:
+def _check_coordinates(points: np.ndarray, path: Path, suffix: str) -> None:
+    """FormatError naming the first vertex beyond float32's range (USD stores points as float32:
+    such a vertex would become inf, and every face's area test would go wrong)."""
+    at = first_beyond_float32(points)
+    if at is None:
+        return
+    i, axis = at
+    line = _obj_vertex_line(path, i) if suffix == ".obj" else None
+    where = f", line {line}" if line else ""
+    n_bad = int((np.abs(points) > FLOAT32_MAX).any(axis=1).sum())
+    more = f" ({n_bad} vertices in all)" if n_bad > 1 else ""
+    raise FormatError(f"mesh file {path}{where}: vertex {i} has {'xyz'[axis]} = {points[i, axis]:.6g}, beyond the "
+                      f"range of the float32 coordinates USD stores (|x| <= {FLOAT32_MAX:.4g}){more}: a corrupt "
+                      f"coordinate")
+
+
+def _obj_vertex_line(path: Path, index: int) -> int | None:
+    """File line of the ``index``-th ``v`` statement of an OBJ file (for messages)."""
+    text = _read_text(path)
+    for k, m in enumerate(_OBJ_V.finditer(text)):
+        if k == index:
+            return text.count("\n", 0, m.start()) + 1
+    return None
+
+
+def _units_from_comment(line: str, path: Path, *, units_given: bool = False) -> str | None:
     m = _UNITS_COMMENT.match(line)
     if not m:
         return None
     unit = _UNIT_WORDS.get(m.group(1).lower())
-    if unit is None:
-        warnings.warn(f"{path}: units comment {line.strip()!r} not understood; ignored", stacklevel=4)
+    if unit is None and not units_given:  # the comment matters only when no units were given
+        log.warning("mesh file %s: units comment %r not understood (known: %s); the mesh is taken to be in %s",
+                    path, line.strip(), ", ".join(sorted(set(_UNIT_WORDS.values()))), DEFAULT_UNITS)
     return unit
 
 
@@ -157,13 +185,13 @@ def _resolve(idx: np.ndarray, n: int) -> np.ndarray:
     return np.where(idx < 0, idx + n, idx - 1)
 
 
-def _read_obj(path: Path):
+def _read_obj(path: Path, *, units_given: bool = False):
     text = _read_text(path)
     if "\\\n" in text:  # line continuations
         text = text.replace("\\\n", " ")
-    fast = _parse_obj_fast(text, path)
+    fast = _parse_obj_fast(text, path, units_given)
     # the line-by-line parser handles irregular files and names the offending line in errors
-    return fast if fast is not None else _parse_obj_slow(text, path)
+    return fast if fast is not None else _parse_obj_slow(text, path, units_given)
 
 
 _OBJ_V = re.compile(r"^[ \t]*v[ \t](.*)", re.MULTILINE)
@@ -206,7 +234,7 @@ def _numbers(block: str, dtype, expected: int):
     return arr if arr.size == expected else None
 
 
-def _parse_obj_fast(text: str, path: Path):
+def _parse_obj_fast(text: str, path: Path, units_given: bool = False):
     """Vectorised OBJ parse for regular files (same token count on every v/vt row, same face-token
     form); None when the file needs the line-by-line parser."""
     v_rows, vt_rows, f_rows = _OBJ_V.findall(text), _OBJ_VT.findall(text), _OBJ_F.findall(text)
@@ -258,11 +286,11 @@ def _parse_obj_fast(text: str, path: Path):
         uvs, uv_indices = uv_all, _resolve(ti, m)
     file_units = None
     for line in _OBJ_UNITS.findall(text)[:1]:
-        file_units = _units_from_comment(line, path)
+        file_units = _units_from_comment(line, path, units_given=units_given)
     return points, counts, _resolve(vi, n), uvs, uv_indices, file_units
 
 
-def _parse_obj_slow(text: str, path: Path):
+def _parse_obj_slow(text: str, path: Path, units_given: bool = False):
     v_rows, vt_rows, f_lines = [], [], []
     v_lines_no, f_lines_no = [], []
     file_units = None
@@ -281,7 +309,7 @@ def _parse_obj_slow(text: str, path: Path):
             f_lines.append(s[2:])
             f_lines_no.append(lineno)
         elif c0 == "#" and file_units is None:
-            file_units = _units_from_comment(s, path)
+            file_units = _units_from_comment(s, path, units_given=units_given)
     # vertices: x y z [w] [r g b]; only xyz are used
     xyz = []
     for i, row in enumerate(v_rows):
@@ -343,7 +371,7 @@ def _parse_obj_slow(text: str, path: Path):
             raise MeshError(f"mesh file {path}, line {f_lines_no[face]}: texture index {ti[k]} outside 1..{m}")
         uvs, uv_indices = uv_all, _resolve(ti, m)
     elif (ti != 0).any():
-        warnings.warn(f"{path}: only some face corners have texture coordinates; UVs not read", stacklevel=3)
+        log.warning("mesh file %s: only some face corners have texture coordinates; UVs not read", path)
     return points, counts, vi, uvs, uv_indices, file_units
 
 
@@ -375,14 +403,14 @@ def _is_ascii_off(path: Path) -> bool:
     return bool(first) and bool(_OFF_HEADER.match(first[0])) and "BINARY" not in (w.upper() for w in first[1:])
 
 
-def _read_off(path: Path):
+def _read_off(path: Path, *, units_given: bool = False):
     text = _read_text(path)
     file_units = None
     rows = []  # (lineno, tokens) of non-empty, comment-stripped lines
     for lineno, line in enumerate(text.splitlines(), 1):
         body, hash_, comment = line.partition("#")
         if hash_ and file_units is None:
-            file_units = _units_from_comment("#" + comment, path)
+            file_units = _units_from_comment("#" + comment, path, units_given=units_given)
         toks = body.split()
         if toks:
             rows.append((lineno, toks))
@@ -399,8 +427,11 @@ def _read_off(path: Path):
         r = 2
     try:
         nv, nf = int(first[0]), int(first[1])
+        if nv < 0 or nf < 0:
+            raise ValueError
     except (ValueError, IndexError):
-        raise FormatError(f"mesh file {path}: bad counts line {' '.join(first)!r} (expected 'vertices faces edges')") from None
+        raise FormatError(f"mesh file {path}: bad counts line {' '.join(first)!r} (expected 'vertices faces edges', "
+                          f"whole numbers >= 0)") from None
     if len(rows) < r + nv + nf:
         raise FormatError(f"mesh file {path}: header announces {nv} vertices and {nf} faces but the file ends early")
     points = np.empty((nv, 3))
@@ -434,7 +465,7 @@ def _read_off(path: Path):
     return points, counts, indices, uvs, uv_indices, file_units
 
 
-def _ply_units(path: Path) -> str | None:
+def _ply_units(path: Path, units_given: bool = False) -> str | None:
     try:
         with open(path, "rb") as f:
             head = f.read(65536)
@@ -443,13 +474,20 @@ def _ply_units(path: Path) -> str | None:
     if not head.startswith(b"ply"):
         return None
     for raw in head.split(b"end_header", 1)[0].splitlines():
-        unit = _units_from_comment(raw.decode("ascii", errors="replace"), path)
+        unit = _units_from_comment(raw.decode("ascii", errors="replace"), path, units_given=units_given)
         if unit:
             return unit
     return None
 
 
-def _read_pymeshlab(path: Path):
+def _read_pymeshlab(path: Path, label: str, units_given: bool = False):
+    from ..memory import check_memory
+    from .mesh_headers import check_mesh_file, memory_estimate
+
+    # pymeshlab trusts the header's counts (a lying STL spins for ever in C++): check them first
+    counts = check_mesh_file(path, label=label)
+    check_memory(memory_estimate(counts), what=f"{label}: {counts[0]:,} vertices and {counts[1]:,} faces"
+                 if counts else label, hint="read a smaller mesh")
     try:
         import pymeshlab
     except ImportError as e:  # pragma: no cover - pymeshlab is a dependency
@@ -492,7 +530,7 @@ def _read_pymeshlab(path: Path):
         vt = np.asarray(m.vertex_tex_coord_matrix(), dtype=np.float64)
         if vt.shape[0] == points.shape[0] and np.ptp(vt, axis=0).max() > 0:
             uvs, uv_indices = vt, indices.copy()
-    units = _ply_units(path) if path.suffix.lower() == ".ply" else None
+    units = _ply_units(path, units_given) if path.suffix.lower() == ".ply" else None
     return points, counts, indices, uvs, uv_indices, units
 
 

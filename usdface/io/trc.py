@@ -30,9 +30,11 @@ import numpy as np
 from ..model.capture import Capture
 from ..errors import FormatError, MarkerError
 from ..errors import list_names
+from ..findings import refuse
+from ..io.limits import check_read_size, rate_finding
 from .captures import (
-    cells_to_float, check_up_axis, format_number, join_numbers, read_text, resolve_rate, resolve_units, unit_from_text,
-    z_up_to_y_up,
+    MAX_TIME_CODE, cells_to_float, check_float32_cells, check_up_axis, format_number, join_numbers, read_text,
+    resolve_rate, resolve_units, unit_from_text, z_up_to_y_up,
 )
 
 __all__ = ["read_trc", "write_trc"]
@@ -41,7 +43,8 @@ _HEADER_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "O
                 "OrigDataStartFrame", "OrigNumFrames")
 
 
-def read_trc(path, *, units: str | None = None, rate: float | None = None, up_axis: str | None = "Y") -> Capture:
+def read_trc(path, *, units: str | None = None, rate: float | None = None, up_axis: str | None = "Y",
+             allow=frozenset()) -> Capture:
     """Read a ``.trc`` marker file.
 
     Parameters
@@ -54,6 +57,8 @@ def read_trc(path, *, units: str | None = None, rate: float | None = None, up_ax
         Needed only when the header has no ``DataRate``; must agree with it otherwise (Hz).
     up_axis : {"Y", "Z"}, optional
         Up axis of the file's data (default Y, the OpenSim convention).
+    allow : set of str
+        Plausibility codes accepted (``rate``, ``frame-count``: :mod:`usdface.io.limits`).
 
     Returns
     -------
@@ -89,28 +94,10 @@ def read_trc(path, *, units: str | None = None, rate: float | None = None, up_ax
             raise FormatError(f"{source}, line 3: unknown Units {header['Units']!r}; expected mm, cm, m, in or ft")
     unit = resolve_units(declared_unit, units, source=source)
     capture_rate = resolve_rate(declared_rate, rate, source=source)
+    refuse([rate_finding(capture_rate, what=source, origin="declared" if declared_rate else "given with --rate")],
+           allow=allow)
 
-    name_cells = lines[3].rstrip("\r\n").split("\t")
-    if len(name_cells) < 2 or name_cells[0].strip() != "Frame#":
-        raise FormatError(f"{source}, line 4: expected 'Frame#<tab>Time<tab><marker names>'")
-    names = [c.strip() for c in name_cells[2::3]]
-    while names and not names[-1]:
-        names.pop()  # trailing tabs
-    if any(not n for n in names):
-        raise FormatError(f"{source}, line 4: empty marker name in column {3 + 3 * names.index('')}")
-    stray = [c.strip() for i, c in enumerate(name_cells[2:]) if i % 3 and c.strip()]
-    if stray:
-        raise FormatError(f"{source}, line 4: marker names must be 3 columns apart; unexpected {stray[0]!r}")
-    if not names:
-        raise MarkerError(f"{source}, line 4: zero markers")
-    if len(names) != n_markers_declared:
-        raise FormatError(f"{source}: header says NumMarkers {n_markers_declared} but line 4 names "
-                          f"{len(names)} markers: {list_names(names)}")
-    seen, dups = set(), set()
-    for name in names:
-        (dups if name in seen else seen).add(name)
-    if dups:
-        raise MarkerError(f"{source}, line 4: duplicate marker names: {list_names(sorted(dups))}")
+    names = _marker_names(lines[3], source, n_markers_declared)
 
     width = 2 + 3 * len(names)
     rows, row_lines = [], []
@@ -137,10 +124,15 @@ def read_trc(path, *, units: str | None = None, rate: float | None = None, up_ax
 
     table = cells_to_float(rows, source=source, first_line=row_lines[0],
                            columns=["Frame#", "Time"] + [f"{n}.{a}" for n in names for a in "XYZ"])
+    check_float32_cells(table[:, 2:], source=source, lines=row_lines, columns=[f"{n}.{a}" for n in names for a in "XYZ"])
     frame_numbers = table[:, 0]
     bad = np.flatnonzero(~np.isfinite(frame_numbers) | (frame_numbers != np.rint(frame_numbers)))
     if bad.size:
         raise FormatError(f"{source}, line {row_lines[bad[0]]}: Frame# {rows[bad[0]][0].strip()!r} is not an integer")
+    bad = np.flatnonzero(np.abs(frame_numbers) > MAX_TIME_CODE)
+    if bad.size:
+        raise FormatError(f"{source}, line {row_lines[bad[0]]}: Frame# {rows[bad[0]][0].strip()} is beyond the time "
+                          f"codes usdface stores (frames within +-{MAX_TIME_CODE:,})")
     frame_numbers = frame_numbers.astype(np.int64)
     first = int(frame_numbers.min())
     index = frame_numbers - first
@@ -149,7 +141,10 @@ def read_trc(path, *, units: str | None = None, rate: float | None = None, up_ax
     if dup.size:
         i = order[dup[0] + 1]
         raise FormatError(f"{source}, line {row_lines[i]}: Frame# {frame_numbers[i]} is listed twice")
-    positions = np.full((int(index.max()) + 1, len(names), 3), np.nan)
+    far = int(np.argmax(index))
+    n_frames = check_read_size(what=source, frames=int(index.max()) + 1, markers=len(names), samples=len(rows),
+                               detail=f" (line {row_lines[far]}: Frame# {frame_numbers[far]})", allow=allow)
+    positions = np.full((n_frames, len(names), 3), np.nan)
     positions[index] = table[:, 2:].reshape(len(rows), len(names), 3)
     positions[~np.isfinite(positions).all(axis=2)] = np.nan
     if up == "Z":
@@ -191,6 +186,32 @@ def write_trc(path, capture: Capture) -> None:
         out.append(f"{code + 1}\t{format_number(code / capture.rate)}\t" + join_numbers(row, "\t"))
     with open(os.fspath(path), "w", newline="\n", encoding="utf-8") as handle:
         handle.write("\n".join(out) + "\n")
+
+
+def _marker_names(line: str, source: str, declared: int) -> list[str]:
+    """Marker names of line 4 (``Frame#<tab>Time<tab>Name<tab><tab>Name...``), checked."""
+    name_cells = line.rstrip("\r\n").split("\t")
+    if len(name_cells) < 2 or name_cells[0].strip() != "Frame#":
+        raise FormatError(f"{source}, line 4: expected 'Frame#<tab>Time<tab><marker names>'")
+    names = [c.strip() for c in name_cells[2::3]]
+    while names and not names[-1]:
+        names.pop()  # trailing tabs
+    if any(not n for n in names):
+        raise FormatError(f"{source}, line 4: empty marker name in column {3 + 3 * names.index('')}")
+    stray = [c.strip() for i, c in enumerate(name_cells[2:]) if i % 3 and c.strip()]
+    if stray:
+        raise FormatError(f"{source}, line 4: marker names must be 3 columns apart; unexpected {stray[0]!r}")
+    if not names:
+        raise MarkerError(f"{source}, line 4: zero markers")
+    if len(names) != declared:
+        raise FormatError(f"{source}: header says NumMarkers {declared} but line 4 names "
+                          f"{len(names)} markers: {list_names(names)}")
+    seen, dups = set(), set()
+    for name in names:
+        (dups if name in seen else seen).add(name)
+    if dups:
+        raise MarkerError(f"{source}, line 4: duplicate marker names: {list_names(sorted(dups))}")
+    return names
 
 
 def _header_int(header: dict, key: str, source: str) -> int:

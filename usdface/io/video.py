@@ -20,6 +20,7 @@ Example
 """
 from __future__ import annotations
 
+import contextlib
 import glob
 import os
 import re
@@ -28,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, OptionError
+from ..inputfiles import check_input_file
 
 __all__ = ["MOVIE_SUFFIXES", "SEQUENCE_SUFFIXES", "VideoReader", "open_video", "is_sequence_pattern", "is_video"]
 
@@ -36,10 +38,30 @@ SEQUENCE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".dpx", "
 _NEEDS_OIIO = (".exr", ".dpx")
 
 
+#: OpenCV's log level while it probes and decodes (its "[ WARN:0@...] global cap.cpp" lines would
+#: precede usdface's own one-line error); 2 = ERROR in cv2.utils.logging
+_CV2_QUIET_LEVEL = 2
+
+
 def _cv2():
+    # FFmpeg (inside OpenCV) prints "moov atom not found" and the like to stderr; OpenCV reads
+    # this variable when its FFmpeg back-end starts (AV_LOG_QUIET = -8). A user who asked for
+    # FFmpeg's messages (either variable set) keeps them.
+    if "OPENCV_FFMPEG_LOGLEVEL" not in os.environ and "OPENCV_FFMPEG_DEBUG" not in os.environ:
+        os.environ["OPENCV_FFMPEG_LOGLEVEL"] = "-8"
     import cv2
 
     return cv2
+
+
+@contextlib.contextmanager
+def _quiet(cv2):
+    """OpenCV's own warnings off while the block runs (usdface says what went wrong)."""
+    previous = cv2.setLogLevel(_CV2_QUIET_LEVEL)
+    try:
+        yield
+    finally:
+        cv2.setLogLevel(previous)
 
 
 def _oiio(required_for: str | None = None):
@@ -68,7 +90,7 @@ def _sequence_files(path: str) -> tuple[list[Path], list[int]]:
     """Files and frame numbers of a sequence pattern or a folder, sorted by frame."""
     p = Path(path)
     if p.is_dir():
-        files = sorted(f for f in p.iterdir() if f.suffix.lower() in SEQUENCE_SUFFIXES)
+        files = sorted(f for f in p.iterdir() if f.suffix.lower() in SEQUENCE_SUFFIXES and f.is_file())
         suffixes = {f.suffix.lower() for f in files}
         if len(suffixes) > 1:
             raise InputError(f"video {p}: folder holds images of several kinds ({', '.join(sorted(suffixes))}); "
@@ -95,7 +117,7 @@ def _sequence_files(path: str) -> tuple[list[Path], list[int]]:
     found = []
     for f in glob.glob(os.path.join(glob.escape(str(folder)), glob.escape(head) + "*" + glob.escape(tail))):
         mm = rx.match(os.path.basename(f))
-        if mm:
+        if mm and os.path.isfile(f):  # a named pipe matching the pattern would block the decoder
             found.append((int(mm.group(1)), Path(f)))
     found.sort()
     return [f for _, f in found], [n for n, _ in found]
@@ -165,27 +187,28 @@ class VideoReader:
                 raise OptionError(f"video {src}: an image sequence has no frame rate: pass --rate HZ")
             self.rate = float(rate)
             return
-        p = Path(src)
-        if not p.is_file():
-            raise InputError(f"video {src}: no such file")
+        p = check_input_file(src, label=f"video {src}")
         if suffix in SEQUENCE_SUFFIXES:
             raise InputError(f"video {src}: a single image, not a video; for an image sequence give a pattern "
                              f"such as name.####{suffix}")
+        if p.stat().st_size == 0:
+            raise InputError(f"video {src}: the file is empty (0 bytes)")
         self.kind = "movie"
         cv2 = _cv2()
-        cap = cv2.VideoCapture(src, cv2.CAP_FFMPEG)
-        try:
-            if not cap.isOpened():
-                raise InputError(f"video {src}: cannot be opened as a video (expected "
-                                 f"{', '.join(MOVIE_SUFFIXES)} or an image sequence pattern)")
-            ok, frame = cap.read()
-            if not ok or frame is None:
-                raise InputError(f"video {src}: zero frames (nothing could be decoded)")
-            self.height, self.width = frame.shape[:2]
-            container_rate = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
-            count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
-        finally:
-            cap.release()
+        with _quiet(cv2):
+            cap = cv2.VideoCapture(src, cv2.CAP_FFMPEG)
+            try:
+                if not cap.isOpened():
+                    raise InputError(f"video {src}: cannot be opened as a video (truncated, or not one of "
+                                     f"{', '.join(MOVIE_SUFFIXES)}; an image sequence is given as a pattern)")
+                ok, frame = cap.read()
+                if not ok or frame is None:
+                    raise InputError(f"video {src}: zero frames (nothing could be decoded)")
+                self.height, self.width = frame.shape[:2]
+                container_rate = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
+                count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+            finally:
+                cap.release()
         if rate is not None:
             self.rate = float(rate)
         elif np.isfinite(container_rate) and 0 < container_rate < 10000:
@@ -223,10 +246,12 @@ class VideoReader:
     # -- movie frames ------------------------------------------------------------------------------
     def _decode(self):
         cv2 = _cv2()
-        cap = cv2.VideoCapture(self.source, cv2.CAP_FFMPEG)
+        with _quiet(cv2):
+            cap = cv2.VideoCapture(self.source, cv2.CAP_FFMPEG)
         try:
             while True:
-                ok, frame = cap.read()
+                with _quiet(cv2):
+                    ok, frame = cap.read()
                 if not ok or frame is None:
                     return
                 yield frame
@@ -265,13 +290,14 @@ class VideoReader:
         if self.kind == "sequence":
             return self._read_image(self._files[index])
         cv2 = _cv2()
-        cap = cv2.VideoCapture(self.source, cv2.CAP_FFMPEG)
-        try:
-            if index:
-                cap.set(cv2.CAP_PROP_POS_FRAMES, index)
-            ok, frame = cap.read()
-        finally:
-            cap.release()
+        with _quiet(cv2):
+            cap = cv2.VideoCapture(self.source, cv2.CAP_FFMPEG)
+            try:
+                if index:
+                    cap.set(cv2.CAP_PROP_POS_FRAMES, index)
+                ok, frame = cap.read()
+            finally:
+                cap.release()
         if not ok:
             raise InputError(f"video {self.source}: frame {index} cannot be decoded")
         return frame

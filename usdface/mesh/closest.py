@@ -20,6 +20,9 @@ from ..errors import MeshError, OptionError
 
 __all__ = ["SurfaceLocator", "closest_points", "closest_point_on_triangles"]
 
+#: largest coordinate a query may have (float32's range: USD stores points as float32)
+_MAX_COORDINATE = float(np.finfo(np.float32).max)
+
 
 def closest_point_on_triangles(q, a, b, c):
     """Exact closest point on triangles, element-wise.
@@ -152,6 +155,9 @@ class SurfaceLocator:
             raise OptionError(f"closest(): queries must have shape (Q, 3); got {q.shape}")
         if not np.isfinite(q).all():
             raise OptionError("closest(): queries contain NaN or infinite coordinates")
+        if q.size and np.abs(q).max() > _MAX_COORDINATE:
+            # squared distances of such points overflow float64 and the search goes wrong
+            raise OptionError(f"closest(): a query coordinate ({np.abs(q).max():.3g}) is beyond float32's range")
         n = q.shape[0]
         tri = np.empty(n, dtype=np.int64)
         bary = np.empty((n, 3))

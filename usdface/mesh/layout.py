@@ -28,8 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import FormatError, MeshError, list_names
 from ..fileutil import write_text_atomic
-from ..errors import FormatError, InputError, MeshError, list_names
+from ..inputfiles import FLOAT32_MAX, read_json
 from ..units import METERS_PER_UNIT, scale_between
 from ..model.mesh import FaceMesh
 
@@ -64,8 +65,9 @@ class LayoutMarker:
             raise FormatError(f"layout marker {self.name!r}: give exactly one of vertex or point")
         if self.point is not None:
             pt = tuple(float(x) for x in self.point)
-            if len(pt) != 3 or not all(math.isfinite(x) for x in pt):
-                raise FormatError(f"layout marker {self.name!r}: point must be 3 finite numbers; got {self.point!r}")
+            if len(pt) != 3 or not all(math.isfinite(x) and abs(x) <= FLOAT32_MAX for x in pt):
+                raise FormatError(f"layout marker {self.name!r}: point must be 3 finite numbers within float32's "
+                                  f"range; got {self.point!r}")
             object.__setattr__(self, "point", pt)
         if self.vertex is not None:
             if isinstance(self.vertex, bool) or int(self.vertex) != self.vertex or self.vertex < 0:
@@ -172,7 +174,30 @@ class Layout:
                 f"layout{where}: vertex index out of range for mesh {mesh_where} "
                 f"({mesh.n_points} vertices, 0..{mesh.n_points - 1}): {list_names(bad)}"
             )
+        self._check_spread(names, out, mesh)
         return out
+
+    def _check_spread(self, names, positions: np.ndarray, mesh: FaceMesh) -> None:
+        """FormatError when markers share one position: all of them (a layout made of one copied
+        entry), or two (a copy-paste slip; two markers cannot drive one point)."""
+        if len(names) < 2:
+            return
+        where = f"layout {self.source}" if self.source else "layout"
+        _, first, inverse, counts = np.unique(positions, axis=0, return_index=True, return_inverse=True,
+                                              return_counts=True)
+        inverse = inverse.ravel()
+        units = mesh.units or "units"
+        if counts.size == 1:
+            p = positions[0]
+            raise FormatError(f"{where}: all {len(names)} markers are at one point ({p[0]:.6g}, {p[1]:.6g}, "
+                              f"{p[2]:.6g}) {units} on mesh {mesh.source or mesh.name}; a layout places each marker "
+                              f"where it sits on the face")
+        shared = np.flatnonzero(counts > 1)
+        if shared.size:
+            groups = [[names[i] for i in np.flatnonzero(inverse == g)] for g in shared]
+            text = "; ".join(" and ".join(g) for g in groups[:6]) + (f"; ... ({shared.size} groups)" if shared.size > 6 else "")
+            raise FormatError(f"{where}: markers at the same point on mesh {mesh.source or mesh.name}: {text}; each "
+                              f"marker needs its own place (a copied entry?)")
 
 
 def read_layout(path) -> Layout:
@@ -195,16 +220,7 @@ def read_layout(path) -> Layout:
         message names the file and the marker).
     """
     path = Path(os.fspath(path))
-    if not path.is_file():
-        raise InputError(f"layout file {path} does not exist" if not path.exists() else f"layout {path} is not a file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"layout file {path} cannot be read: {e}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise FormatError(f"layout file {path} is not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}") from None
+    data = read_json(path, label=f"layout file {path}")
     if not isinstance(data, dict):
         raise FormatError(f"layout file {path}: top level must be a JSON object; got {type(data).__name__}")
     unknown = [k for k in data if k not in _TOP_KEYS]
@@ -240,6 +256,9 @@ def _parse_entry(path: Path, name: str, entry) -> LayoutMarker:
         or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value)
     ):
         raise FormatError(f"{where}: point must be a list of 3 finite numbers; got {json.dumps(value)}")
+    if any(abs(x) > FLOAT32_MAX for x in value):
+        raise FormatError(f"{where}: point {json.dumps(value)} is beyond the range of the float32 coordinates "
+                          f"USD stores (|x| <= {FLOAT32_MAX:.4g}); not a position on a face")
     return LayoutMarker(name, point=tuple(float(x) for x in value))
 
 

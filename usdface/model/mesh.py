@@ -14,6 +14,11 @@ import numpy as np
 
 from ..errors import MeshError
 
+#: largest coordinate a mesh may have: USD stores points as float32
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+#: a vertex this many times farther from the mesh's centre than the median vertex is a corrupt coordinate
+FAR_VERTEX_RATIO = 1000.0
+
 #: region roles understood by usdface (the face-region schema's allowedTokens)
 REGION_ROLES = ("outerBorder", "mouth", "eye", "geodesic", "pinned", "rigid", "other")
 
@@ -63,6 +68,12 @@ class FaceMesh:
             raise MeshError(f"mesh{where}: points must have shape (N>0, 3); got {pts.shape}")
         if not np.isfinite(pts).all():
             raise MeshError(f"mesh{where}: {int((~np.isfinite(pts)).any(axis=1).sum())} vertices are NaN or infinite")
+        beyond = np.abs(pts) > FLOAT32_MAX
+        if beyond.any():
+            i = int(np.flatnonzero(beyond.any(axis=1))[0])
+            raise MeshError(f"mesh{where}: vertex {i} at ({', '.join(f'{x:.6g}' for x in pts[i])}) is beyond the range "
+                            f"of the float32 coordinates USD stores (|x| <= {FLOAT32_MAX:.4g}); "
+                            f"{int(beyond.any(axis=1).sum())} such vertices in all: a corrupt coordinate")
         if counts.size == 0:
             raise MeshError(f"mesh{where} has no faces")
         if (counts < 3).any():
@@ -122,7 +133,33 @@ class FaceMesh:
         bad = np.flatnonzero(face_area <= rel_area * scale)
         if bad.size:
             where = f" {self.source}" if self.source else f" {self.name!r}"
+            far, ratio = self.far_vertices()
+            if far.size:  # one wild coordinate shrinks every face relative to the bounding box
+                i = int(far[0])
+                raise MeshError(f"mesh{where}: vertex {i} at ({', '.join(f'{x:.6g}' for x in p[i])}) is {ratio[0]:.3g} "
+                                f"times farther from the mesh's centre than its median vertex ({far.size} such "
+                                f"vertices): a corrupt coordinate, which makes {bad.size} faces look degenerate")
             raise MeshError(f"mesh{where}: {bad.size} degenerate (zero-area) face(s), e.g. faces {bad[:10].tolist()}")
+
+    def far_vertices(self, *, ratio: float = FAR_VERTEX_RATIO) -> tuple[np.ndarray, np.ndarray]:
+        """Vertices more than ``ratio`` times farther from the median point than the median vertex.
+
+        Returns
+        -------
+        indices : ndarray, shape (K,), int64
+            Such vertices, farthest first.
+        ratios : ndarray, shape (K,), float64
+            Their distance over the median distance.
+        """
+        p = self.points
+        centre = np.median(p, axis=0)
+        r = np.linalg.norm(p - centre, axis=1)
+        typical = float(np.median(r))
+        if not typical > 0:
+            return np.zeros(0, np.int64), np.zeros(0)
+        far = np.flatnonzero(r > ratio * typical)
+        order = far[np.argsort(-r[far], kind="stable")]
+        return order.astype(np.int64), r[order] / typical
 
 
 @dataclass(frozen=True)

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ComputeError, FormatError, InputError, OptionError
+from ..io.npz import load_npz
 
 __all__ = ["AAM_FORMAT", "ActiveAppearanceModel", "AAMFit", "train_aam", "load_aam", "procrustes_align",
            "similarity_transform_2d", "augment_sample"]
@@ -460,16 +461,12 @@ def train_aam(images, shapes, *, names, model_size: float = 60.0, shape_variance
 def load_aam(path) -> ActiveAppearanceModel:
     """Read a model written by :meth:`ActiveAppearanceModel.save`."""
     p = Path(os.fspath(path))
-    if not p.is_file():
-        raise InputError(f"AAM model {p}: no such file")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except Exception as exc:  # zipfile / numpy format errors
-        raise FormatError(f"AAM model {p}: cannot be read ({exc})") from None
+    arrays = load_npz(p, label=f"AAM model {p}")
     try:
         meta = json.loads(str(arrays.pop("meta")))
-    except (KeyError, json.JSONDecodeError):
+        if not isinstance(meta, dict):
+            raise KeyError("meta")
+    except (KeyError, json.JSONDecodeError, RecursionError):
         raise FormatError(f"AAM model {p}: no metadata (not a usdface AAM model)") from None
     if meta.get("format") != AAM_FORMAT:
         raise FormatError(f"AAM model {p}: format {meta.get('format')!r}; expected {AAM_FORMAT!r}")

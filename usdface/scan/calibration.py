@@ -36,7 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError, InputError, OptionError, list_names
+from ..errors import FormatError, OptionError, list_names
+from ..inputfiles import read_json
 from ..units import METERS_PER_UNIT
 
 __all__ = ["StereoCalibration", "RectifiedPair", "read_calibration", "calibration_from_dict", "rectify_pair",
@@ -191,12 +192,9 @@ def calibration_from_dict(data: dict, *, source: str = "") -> StereoCalibration:
 def read_calibration(path) -> StereoCalibration:
     """Read a calibration JSON file (rectified or full; see the module docstring)."""
     p = Path(os.fspath(path))
-    if not p.is_file():
-        raise InputError(f"calibration {p}: no such file")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(f"calibration {p} is not valid JSON: {exc}") from None
+    data = read_json(p, label=f"calibration {p}")
+    if not isinstance(data, dict):
+        raise FormatError(f"calibration {p}: expected a JSON object; got {type(data).__name__}")
     return calibration_from_dict(data, source=str(p))
 
 

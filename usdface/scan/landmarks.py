@@ -32,6 +32,7 @@ import numpy as np
 
 from ..fileutil import write_text_atomic
 from ..errors import FormatError, InputError, MeshError, list_names
+from ..inputfiles import FLOAT32_MAX, check_input_file, read_json
 
 __all__ = ["FACE_LANDMARKS", "EYE_LANDMARKS", "Landmarks", "read_landmarks", "write_landmarks",
            "interocular_distance", "mesh_face_landmarks", "read_pts", "write_pts"]
@@ -96,8 +97,10 @@ class Landmarks:
 
 
 def _finite_list(value, n) -> bool:
+    """``n`` numbers, finite and within float32's range (what USD and images store)."""
     return (isinstance(value, list) and len(value) == n
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value))
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                    and abs(x) <= FLOAT32_MAX for x in value))
 
 
 def read_landmarks(path) -> Landmarks:
@@ -112,12 +115,7 @@ def read_landmarks(path) -> Landmarks:
         landmarks at all (the message names the file and the entry).
     """
     p = Path(os.fspath(path))
-    if not p.is_file():
-        raise InputError(f"landmarks file {p}: no such file")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(f"landmarks file {p} is not valid JSON: {exc}") from None
+    data = read_json(p, label=f"landmarks file {p}")
     if isinstance(data, dict) and data.get("format", "").startswith("usdface-features/"):
         data = data.get("landmarks") or {}
         if not data:
@@ -135,12 +133,12 @@ def read_landmarks(path) -> Landmarks:
                               f"{{\"scan\": [x, y, z]}}; got {json.dumps(entry)}")
         if "image" in entry:
             if not _finite_list(entry["image"], 2):
-                raise FormatError(f"landmarks file {p}, landmark {name!r}: image must be 2 finite numbers; "
+                raise FormatError(f"landmarks file {p}, landmark {name!r}: image must be 2 finite numbers (float32); "
                                   f"got {json.dumps(entry['image'])}")
             image[name] = tuple(float(x) for x in entry["image"])
         if "scan" in entry:
             if not _finite_list(entry["scan"], 3):
-                raise FormatError(f"landmarks file {p}, landmark {name!r}: scan must be 3 finite numbers; "
+                raise FormatError(f"landmarks file {p}, landmark {name!r}: scan must be 3 finite numbers (float32); "
                                   f"got {json.dumps(entry['scan'])}")
             scan[name] = tuple(float(x) for x in entry["scan"])
     return Landmarks(image=image, scan=scan, source=str(p))
@@ -177,9 +175,7 @@ def read_pts(path) -> np.ndarray:
     -------
     ndarray, shape (N, 2), float64
     """
-    p = Path(os.fspath(path))
-    if not p.is_file():
-        raise InputError(f"point file {p}: no such file")
+    p = check_input_file(os.fspath(path), label=f"point file {os.fspath(path)}")
     lines = [ln.strip() for ln in p.read_text(encoding="utf-8", errors="replace").splitlines() if ln.strip()]
     try:
         n = int(next(ln for ln in lines if ln.lower().startswith("n_points")).split(":")[1])

@@ -69,10 +69,15 @@ def check_seeds(seeds: dict, size, *, source: str = "--seeds") -> dict:
     w, h = size
     out, outside = {}, []
     for name, xy in seeds.items():
-        try:
-            x, y = (float(v) for v in xy)
-        except (TypeError, ValueError):
-            raise InputError(f"{source}: marker {name!r}: expected [x, y] in pixels; got {xy!r}") from None
+        numbers = (isinstance(xy, (list, tuple)) and len(xy) == 2
+                   and all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+                           for v in xy))
+        try:  # (a string "12" would otherwise iterate to (1, 2); 10**400 overflows float)
+            x, y = (float(v) for v in xy) if numbers else (None, None)
+        except OverflowError:
+            numbers = False
+        if not numbers:
+            raise InputError(f"{source}: marker {name!r}: expected [x, y] in pixels; got {str(xy)[:60]!r}") from None
         if not (math.isfinite(x) and math.isfinite(y)):
             raise InputError(f"{source}: marker {name!r}: coordinates must be finite; got {xy!r}")
         if not (-0.5 <= x <= w - 0.5 and -0.5 <= y <= h - 0.5):

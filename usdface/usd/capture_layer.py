@@ -20,6 +20,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..model.capture import Capture
 from ..errors import InputError, MarkerError
+from ..inputfiles import display_name, first_beyond_float32
 from ..units import METERS_PER_UNIT
 from .layers import describe, open_stage, output_layer, set_provenance, set_stage_metadata, stage_units
 from .schemas import require_registered
@@ -66,6 +67,11 @@ def write_capture_layer(path: str | os.PathLike, capture: Capture, *, prov: dict
         raise MarkerError(f"capture {capture.source}: units unknown; pass --units")
     capture.check_not_all_invalid()
     valid = capture.valid
+    beyond = first_beyond_float32(capture.positions)
+    if beyond is not None:
+        f, m, _ = beyond
+        raise MarkerError(f"capture {capture.source}: marker {capture.names[m]!r} at frame {capture.start_frame + f} is "
+                          f"{capture.positions[f, m].tolist()}, beyond the range of the float32 points USD stores")
     held = hold_invalid(capture.positions, valid).astype(np.float32)
     start = capture.start_frame
     with output_layer(path) as stage:
@@ -77,7 +83,8 @@ def write_capture_layer(path: str | os.PathLike, capture: Capture, *, prov: dict
         prim.ApplyAPI(MARKER_SET_API)
         prim.GetAttribute("usdface:markerSet:names").Set(Vt.StringArray(list(capture.names)))
         prim.GetAttribute("usdface:markerSet:captureRate").Set(float(capture.rate))
-        prim.GetAttribute("usdface:markerSet:sourceFile").Set(os.path.basename(capture.source))
+        # only recorded, so a name that is not UTF-8 is kept with its odd bytes escaped (\xNN)
+        prim.GetAttribute("usdface:markerSet:sourceFile").Set(display_name(os.path.basename(capture.source)))
         prim.GetAttribute("usdface:markerSet:sourceUnits").Set(capture.units)
         prim.GetAttribute("usdface:markerSet:neutralTime").Set(float(start + capture.neutral_frame))
         dims = next((h.get("dims") for h in capture.history if "dims" in h), 3)
@@ -146,16 +153,28 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
     head_op = _head_op(prim)
     pos, valid, head = [], [], []
     has_motion = head_op is not None and head_op.GetNumTimeSamples() > 0
+    where = f"capture {describe(path)}: {prim.GetPath()}"
     for t in times:
         tc = Usd.TimeCode(t) if not isinstance(t, Usd.TimeCode) else t
-        pos.append(np.asarray(points_attr.Get(tc), dtype=np.float64))
+        when = "" if tc.IsDefault() else f" at time {tc.GetValue():g}"
+        p = np.asarray(points_attr.Get(tc), dtype=np.float64)
+        if p.shape != (len(names), 3):
+            raise InputError(f"{where} has {len(p)} points{when} for its {len(names)} marker names: every time "
+                             f"sample holds one point per marker")
+        pos.append(p)
         v = valid_attr.Get(tc) if valid_attr and valid_attr.HasValue() else None
-        valid.append(np.ones(len(names), bool) if v is None else np.asarray(v, dtype=bool))
+        v = np.ones(len(names), bool) if v is None else np.asarray(v, dtype=bool)
+        if v.shape != (len(names),):
+            raise InputError(f"{where}: primvars:usdface:valid has {v.size} values{when} for its {len(names)} markers")
+        valid.append(v)
         if has_motion:
             head.append(_matrix_from_usd(head_op.Get(tc)))
     positions = np.stack(pos)
-    if positions.shape[1] != len(names):
-        raise InputError(f"capture {describe(path)}: {len(names)} marker names but {positions.shape[1]} points")
+    if not np.isfinite(positions).all():
+        t, m = np.argwhere(~np.isfinite(positions).all(axis=2))[0]
+        when = "" if isinstance(times[t], Usd.TimeCode) else f" at time {times[t]:g}"
+        raise InputError(f"{where}: marker {names[m]!r} is NaN or infinite{when}; a capture layer holds finite points "
+                         f"and marks gaps in primvars:usdface:valid")
     valid = np.stack(valid)
     positions[~valid] = np.nan
     head_motion = np.stack(head) if head else None

@@ -11,7 +11,7 @@ from .layers import get_provenance, open_stage, stage_units
 
 def describe(path: str | os.PathLike) -> dict:
     """A JSON-serialisable summary of the stage opened from ``path``."""
-    stage = open_stage(path, what="file")
+    stage = open_stage(path, what="file", composition="warn")
     layer = stage.GetRootLayer()
     out = {
         "file": str(path),

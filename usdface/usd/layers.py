@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import logging
 import os
 from pathlib import Path
 
@@ -19,9 +20,13 @@ from pxr import Sdf, Tf, Usd, UsdGeom
 
 from .. import __version__
 from ..errors import InputError, OptionError
+from ..inputfiles import check_input_file, check_utf8_path, display_name
 from ..fileutil import (file_digest, fsync_dir, fsync_file, inject_fault, refuse_overwriting_inputs,  # noqa: F401
                         set_default_mode, temporary_path, write_error)  # (file_digest re-exported)
 from ..units import meters_per_unit, unit_name
+from .diagnostics import error_text, trapped
+
+log = logging.getLogger("usdface")
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 
@@ -43,6 +48,7 @@ def check_output_path(path: str | os.PathLike, *, suffixes=OUTPUT_SUFFIXES, opti
     if is_in_memory(path):
         return path
     p = Path(path)
+    check_utf8_path(p, label=option)
     if inputs:
         refuse_overwriting_inputs({option: p}, with_composed_files(inputs))
     if p.suffix.lower() not in suffixes:
@@ -179,9 +185,11 @@ def layer_provenance(path: str | os.PathLike) -> dict | None:
     or None when the file cannot be opened or has none."""
     p = Path(path)
     try:
-        layer = Sdf.Layer.OpenAsAnonymous(str(p), metadataOnly=True) if p.suffix.lower() == ".usdc" else \
-            Sdf.Layer.FindOrOpen(str(p))
-    except USD_ERRORS:
+        check_input_file(p)
+        text = check_utf8_path(p)
+        layer = Sdf.Layer.OpenAsAnonymous(text, metadataOnly=True) if p.suffix.lower() == ".usdc" else \
+            Sdf.Layer.FindOrOpen(text)
+    except (InputError, *USD_ERRORS):
         return None
     if layer is None:
         return None
@@ -212,6 +220,7 @@ def composed_files(path: str | os.PathLike, *, limit: int = 64) -> list[str]:
     p = Path(path)
     if p.suffix.lower() not in USD_SUFFIXES or not p.is_file():
         return []
+    check_utf8_path(p, label="USD file")  # the reader would refuse it later, after other checks
     seen, todo, found = set(), [str(p.resolve())], []
     while todo and len(seen) < limit:
         current = todo.pop()
@@ -219,7 +228,8 @@ def composed_files(path: str | os.PathLike, *, limit: int = 64) -> list[str]:
             continue
         seen.add(current)
         try:
-            layer = Sdf.Layer.FindOrOpen(current)
+            with trapped():
+                layer = Sdf.Layer.FindOrOpen(current)
         except USD_ERRORS:
             continue
         if layer is None:
@@ -245,24 +255,121 @@ def with_composed_files(inputs: dict) -> dict:
     return out
 
 
-def open_stage(path: str | os.PathLike, *, what: str = "layer") -> Usd.Stage:
-    """Open a USD file, with an error naming it when it is missing or unreadable. A Usd.Stage is
-    returned as it is and an Sdf.Layer opened as a stage (in-memory input from the Python API)."""
+def _usd_input(path, what: str) -> tuple[Path, str, str]:
+    """(Path, str for USD, label for messages) of a USD input file, after the checks every USD
+    input gets: a readable regular file (a named pipe would block USD for ever), a USD suffix, a
+    UTF-8 name (Sdf cannot take another), not empty."""
+    p = Path(path)
+    label = f"{what} {display_name(p)}"
+    check_input_file(p, label=label)
+    if p.suffix.lower() not in USD_SUFFIXES:
+        raise InputError(f"{label}: not a USD file (expected {', '.join(USD_SUFFIXES)})")
+    text = check_utf8_path(p, label=what)
+    if p.stat().st_size == 0:
+        raise InputError(f"{label}: the file is empty (0 bytes), not a USD layer")
+    return p, text, label
+
+
+def open_layer(path: str | os.PathLike, *, what: str = "layer") -> Sdf.Layer:
+    """Open one USD file as an Sdf.Layer (no composition), with the checks and messages of
+    :func:`open_stage`."""
+    _, text, label = _usd_input(path, what)
+    try:
+        with trapped():
+            layer = Sdf.Layer.FindOrOpen(text)
+    except USD_ERRORS as exc:
+        raise InputError(f"{label}: cannot be read as USD ({error_text(exc)})") from None
+    if layer is None:
+        raise InputError(f"{label}: cannot be read as USD")
+    return layer
+
+
+#: at most this many layers are opened ahead of a stage to check what it composes
+MAX_COMPOSED_LAYERS = 512
+
+
+def _open_composed_layers(root: str, label: str) -> list:
+    """Open the layers ``root`` composes (sublayers, references, payloads), before the stage does.
+
+    A named pipe among them would block USD for ever; a parse error in a sublayer would reach the
+    user only as a warning, and a missing or cyclic sublayer as a misleading error later. Returns
+    the opened layers (keep them until the stage is open: USD then reuses them).
+    """
+    opened, done = [], set()
+    todo = [(root, (root,), None)]  # (path, chain of sublayers down to it, how it is composed)
+    while todo and len(done) < MAX_COMPOSED_LAYERS:
+        path, chain, via = todo.pop()
+        if path in done:
+            continue
+        done.add(path)
+        if via is not None:
+            if not os.path.exists(path):
+                continue  # the stage reports it, unless the asset resolver finds it elsewhere
+            check_input_file(path, label=f"{label}: {via}")
+        try:
+            with trapped():
+                layer = Sdf.Layer.FindOrOpen(path)
+        except USD_ERRORS as exc:
+            raise InputError(f"{label}: {via + ' ' if via else ''}cannot be read as USD ({error_text(exc)})") from None
+        if layer is None:
+            continue
+        opened.append(layer)
+        name = os.path.basename(path)
+        subs = set()
+        for sub in layer.subLayerPaths:
+            target = layer.ComputeAbsolutePath(sub)
+            subs.add(target)
+            if target in chain:
+                loop = " -> ".join(os.path.basename(c) for c in chain[chain.index(target):] + (target,))
+                raise InputError(f"{label}: its sublayers form a cycle ({loop}); a layer cannot sublayer itself")
+            todo.append((target, chain + (target,), f"sublayer {sub} of {name}"))
+        for asset in layer.GetCompositionAssetDependencies():
+            target = layer.ComputeAbsolutePath(asset)
+            if target and target not in subs:
+                todo.append((target, (target,), f"{asset} (referenced by {name})"))
+    return opened
+
+
+def open_stage(path: str | os.PathLike, *, what: str = "layer", composition: str = "error") -> Usd.Stage:
+    """Open a USD file as a stage, with one line naming it when it cannot be used.
+
+    Refused (InputError): a missing, unreadable or non-regular file (a named pipe, a device), a
+    name that is not UTF-8, an empty file, a file USD cannot parse (USD's own message kept, e.g.
+    ``shot.usda:7:1: parse error ... at '}'``, without its C++ source location), a composed layer
+    that is a named pipe or cannot be parsed, sublayers that form a cycle. USD's warnings never
+    reach stderr raw: a composition problem (a missing sublayer, reference or payload) is an error
+    with ``composition="error"`` (readers: the stage would lack what they read), a usdface warning
+    with ``"warn"`` (``info``), dropped with ``"ignore"`` (``check``, whose validators report it);
+    other warnings become usdface warnings. A Usd.Stage is returned as it is and an Sdf.Layer
+    opened as a stage (in-memory input from the Python API).
+    """
     if isinstance(path, Usd.Stage):
         return path
     if isinstance(path, Sdf.Layer):
         return Usd.Stage.Open(path, Usd.Stage.LoadAll)
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"{what} {p}: no such file")
-    if p.suffix.lower() not in USD_SUFFIXES:
-        raise InputError(f"{what} {p}: not a USD file (expected {', '.join(USD_SUFFIXES)})")
+    if composition not in ("error", "warn", "ignore"):
+        raise ValueError(f"open_stage: composition must be 'error', 'warn' or 'ignore'; got {composition!r}")
+    p, text, label = _usd_input(path, what)
+    keep = _open_composed_layers(os.path.abspath(text), label)
     try:
-        stage = Usd.Stage.Open(str(p), Usd.Stage.LoadAll)
-    except Exception as exc:  # pxr raises Tf.ErrorException with a long C++ message
-        raise InputError(f"{what} {p}: cannot be read as USD ({str(exc).strip().splitlines()[-1]})") from None
+        with trapped() as found:
+            stage = Usd.Stage.Open(text, Usd.Stage.LoadAll)
+    except USD_ERRORS as exc:
+        raise InputError(f"{label}: cannot be read as USD ({error_text(exc)})") from None
+    finally:
+        del keep
     if stage is None:
-        raise InputError(f"{what} {p}: cannot be read as USD")
+        raise InputError(f"{label}: cannot be read as USD")
+    problems = [d.text for d in found if d.composition]
+    for d in found:
+        if not d.composition:
+            log.warning("%s: %s", label, d.text)
+    if problems and composition == "error":
+        more = f" (and {len(problems) - 1} more: `usdface check` lists them)" if len(problems) > 1 else ""
+        raise InputError(f"{label}: {problems[0]}{more}")
+    if composition == "warn":
+        for text in problems:
+            log.warning("%s: %s", label, text)
     return stage
 
 
@@ -362,7 +469,7 @@ def new_stage(layers) -> Usd.Stage:
     opened = []
     for item in layers:
         layer = item.GetRootLayer() if isinstance(item, Usd.Stage) else item if isinstance(item, Sdf.Layer) \
-            else Sdf.Layer.FindOrOpen(str(Path(item).resolve()))
+            else open_layer(Path(item).resolve(), what="layer")
         if layer is None:
             raise InputError(f"{item}: cannot be read as USD")
         root.subLayerPaths.append(layer.identifier)

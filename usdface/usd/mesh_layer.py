@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-from ..errors import InputError, MeshError
+from ..errors import InputError, MeshError, list_names
 from ..model.mesh import Binding, FaceMesh, Region
 from .capture_layer import _matrix_from_usd, _matrix_to_usd, find_marker_set
 from .layers import (add_sublayer, describe, is_in_memory, open_stage, output_layer, relative_asset_path, set_provenance,
@@ -87,22 +87,41 @@ def write_mesh_layer(path: str | os.PathLike, mesh: FaceMesh, regions: list[Regi
 MESH_SCHEMAS = ("FaceRegionAPI", "FaceMarkerBindingAPI", "FaceTransferAPI", "FaceDistanceMatrixAPI")
 
 
-def find_mesh(stage: Usd.Stage, *, what: str = "mesh") -> Usd.Prim:
-    """The face mesh prim: one with usdface schemas applied (also an ``over`` in a layer of its
-    own, such as an analysis layer), else the default prim's first Mesh, else the first Mesh."""
+def find_mesh(stage: Usd.Stage, *, what: str = "mesh", prim_path: str | None = None) -> Usd.Prim:
+    """The face mesh prim: ``prim_path`` when given; else the prim with usdface schemas applied
+    (also an ``over`` in a layer of its own, such as an analysis layer); else the only Mesh under
+    the default prim (or, without one, on the stage).
+
+    Several Mesh prims with nothing to tell the face (a character file with eyes, teeth and
+    lashes) is an InputError naming them: taking the first would bind a capture to an eyeball
+    with exit code 0, and a batch would repeat that in every shot. The fix is a file with the
+    face mesh alone, a default prim holding only it, or ``prim_path``.
+    """
+    where = f"{what} {stage.GetRootLayer().identifier}"
+    if prim_path is not None:
+        prim = stage.GetPrimAtPath(str(prim_path))
+        if not prim or not prim.IsA(UsdGeom.Mesh):
+            meshes = [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+            raise InputError(f"{where}: {prim_path} is not a Mesh prim; its Mesh prims: {list_names(meshes) or 'none'}")
+        return prim
     every = list(Usd.PrimRange.Stage(stage, Usd.PrimAllPrimsPredicate))
     for prim in every:
         if any(s.startswith(MESH_SCHEMAS) for s in prim.GetAppliedSchemas()):
             return prim
     root = stage.GetDefaultPrim()
-    if root:
-        for prim in Usd.PrimRange(root):
-            if prim.IsA(UsdGeom.Mesh):
-                return prim
-    for prim in every:
-        if prim.IsA(UsdGeom.Mesh):
-            return prim
-    raise InputError(f"{what} {stage.GetRootLayer().identifier}: no Mesh prim (expected {GEOM_PRIM})")
+    scope = Usd.PrimRange(root) if root else stage.Traverse()
+    meshes = [prim for prim in scope if prim.IsA(UsdGeom.Mesh)]
+    if not meshes and root:
+        meshes = [prim for prim in stage.Traverse() if prim.IsA(UsdGeom.Mesh)]
+    if len(meshes) == 1:
+        return meshes[0]
+    if not meshes:
+        raise InputError(f"{where}: no Mesh prim (expected {GEOM_PRIM})")
+    shown = [f"{p.GetPath()} ({len(UsdGeom.Mesh(p).GetPointsAttr().Get() or [])} points)" for p in meshes]
+    inside = f" under the default prim {root.GetPath()}" if root else ""
+    raise InputError(f"{where}: {len(meshes)} Mesh prims{inside} and none marked as the face: {list_names(shown, 6)}; "
+                     f"usdface reads one face mesh: export it alone, or make a prim holding only the face mesh the "
+                     f"default prim")
 
 
 def mesh_from_prim(prim: Usd.Prim, *, units: str | None, source: str, time=Usd.TimeCode.Default()) -> FaceMesh:
@@ -128,10 +147,12 @@ def mesh_from_prim(prim: Usd.Prim, *, units: str | None, source: str, time=Usd.T
                     name=prim.GetName(), source=source)
 
 
-def read_mesh_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = None) -> tuple[FaceMesh, list[Region]]:
-    """Read the face mesh and its regions from a USD file."""
+def read_mesh_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = None,
+                    prim_path: str | None = None) -> tuple[FaceMesh, list[Region]]:
+    """Read the face mesh and its regions from a USD file (``prim_path``: which Mesh prim, when
+    the file holds several; see :func:`find_mesh`)."""
     stage = stage or open_stage(path, what="mesh")
-    prim = find_mesh(stage)
+    prim = find_mesh(stage, prim_path=prim_path)
     mesh = mesh_from_prim(prim, units=stage_units(stage), source=describe(path))
     return mesh, read_regions(prim)
 

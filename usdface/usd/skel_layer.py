@@ -30,13 +30,13 @@ Do not compose it with the animation layer (``anim.usdc``) of the same take: bot
 from __future__ import annotations
 
 import json
-import os
 
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from ..errors import InputError
-from .layers import add_sublayer, open_stage, output_layer, set_provenance, set_stage_metadata, stage_units
+from .layers import (add_sublayer, open_layer, open_stage, output_layer, set_provenance, set_stage_metadata,
+                     stage_units)
 from .motion import author_head_motion
 from .mesh_layer import find_mesh
 
@@ -214,8 +214,6 @@ def skinned_points(path, *, times=None, stage: Usd.Stage | None = None,
 
 def read_skel_report(path) -> dict:
     """The skinning report stored in a skeleton layer's provenance."""
-    layer = Sdf.Layer.FindOrOpen(os.fspath(path))
-    if layer is None:
-        raise InputError(f"skeleton {path}: cannot be read as USD")
+    layer = open_layer(path, what="skeleton")
     data = dict(layer.customLayerData.get("usdface", {}))
     return json.loads(data.get("skinning", "{}"))

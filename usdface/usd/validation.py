@@ -290,7 +290,7 @@ def check_layer(path: str | os.PathLike) -> list[Finding]:
     if any(f.severity == "error" and ("missing" in f.message) for f in integrity):
         return integrity  # composing a shot with missing layers adds nothing but USD's warnings
     register_validators()
-    stage = open_stage(path, what="file")
+    stage = open_stage(path, what="file", composition="ignore")  # its validators report composition errors
     validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
     image_space = _is_image_track_layer(stage)
     findings = []
