@@ -219,20 +219,18 @@ def read_shapes_npz(path, *, check: bool = True) -> tuple[list[str], np.ndarray 
     neutral : ndarray (N, 3) float64 or None
     deltas : ndarray (K, N, 3) float64
     """
+    from ..io.npz import load_npz
+
     p = Path(os.fspath(path))
     if not p.is_file():
         raise InputError(f"--shapes {p}: no such file")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            keys = set(z.files)
-            missing = [k for k in ("names", "deltas") if k not in keys]
-            if missing:
-                raise FormatError(f"shapes file {p}: missing array(s) {', '.join(missing)}; has {', '.join(sorted(keys))}")
-            names = [str(n) for n in z["names"]]
-            deltas = np.asarray(z["deltas"], dtype=np.float64)
-            neutral = np.asarray(z["neutral"], dtype=np.float64) if "neutral" in keys else None
-    except (OSError, ValueError) as exc:
-        raise FormatError(f"shapes file {p} is not a readable .npz: {exc}") from None
+    z = load_npz(p, label=f"shapes file {p}")  # headers checked against the file before any allocation
+    missing = [k for k in ("names", "deltas") if k not in z]
+    if missing:
+        raise FormatError(f"shapes file {p}: missing array(s) {', '.join(missing)}; has {', '.join(sorted(z))}")
+    names = [str(n) for n in z["names"]]
+    deltas = np.asarray(z["deltas"], dtype=np.float64)
+    neutral = np.asarray(z["neutral"], dtype=np.float64) if "neutral" in z else None
     if check:
         if deltas.ndim != 3 or deltas.shape[0] != len(names) or deltas.shape[2] != 3:
             raise FormatError(f"shapes file {p}: deltas must have shape ({len(names)}, N, 3); got {deltas.shape}")

@@ -108,7 +108,7 @@ def condition_capture(capture: Capture, steps: Conditioning = Conditioning()) ->
                               "(0-based, after --trim) or 'auto'")
         capture = neutral_mod.set_neutral(capture, neutral, how="option")
     if resample is not None:
-        capture = timing.resample(capture, rate=resample)
+        capture = timing.resample(capture, rate=resample, allow=frozenset(allow))
     if stabilize is not None:
         from .stabilize import stabilize as stabilize_fn
 

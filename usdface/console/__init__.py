@@ -19,6 +19,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 
 from ..errors import Interrupted, UsdFaceError, stop_signals
 from .arguments import options_from_args
@@ -120,6 +121,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     level = logging.ERROR if args.quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
     logging.basicConfig(level=level, format="usdface: %(levelname)s: %(message)s", stream=sys.stderr)
+    # a library's or usdface's own warnings.warn reaches the user as one usdface line, not Python's
+    # "file:line: Category: text" with its source line
+    warnings.showwarning = lambda message, category, *rest, **kw: log.warning("%s", message)
     processor = args._processor
     name = f"usdface {processor.name}"
     try:

@@ -90,6 +90,9 @@ def _check(mesh, capture, out_dir, o: RunOptions) -> _Job:
                         ("--seeds", o.seeds)):
         if path is not None and not Path(path).is_file():
             raise OptionError(f"{label} {path}: no such file")
+    from ..inputfiles import check_utf8_path
+
+    check_utf8_path(out_dir, label="-o")  # USD takes UTF-8 names only: refused before any work
     out = Path(out_dir)
     if out.is_symlink() and not out.exists():
         raise OptionError(f"-o {out}: a symbolic link that loops or points nowhere (to {os.readlink(out)}); "

@@ -82,7 +82,7 @@ def _solve(mesh, capture, options: SolveOptions, files, corrective) -> Result:
         raise OptionError("solve: give exactly one of --layout LAYOUT.json or --auto")
     outs = _check_outputs(mesh, capture, o, files, corrective)
     rig, regions = _rig(mesh, o, livelink=files.livelink is not None)
-    cap = load_capture(capture, units=o.units, rate=o.rate, up_axis=o.up_axis, keep_zeros=o.keep_zeros)
+    cap = load_capture(capture, units=o.units, rate=o.rate, up_axis=o.up_axis, keep_zeros=o.keep_zeros, allow=o.allow)
     cap, reports = condition_capture(cap, o.conditioning())
     # judged as `bind` judges a binding (face size, layout distance, fit residual, unit scale)
     binding, _, _ = bind_and_judge(rig.mesh, cap, layout=o.layout, retarget=o.retarget, allow=o.allow,

@@ -102,7 +102,8 @@ def _import_capture(input, out, options, fill_gaps) -> dict:
     trim, filter, resample = options["trim"], options["filter"], options["resample"]
     neutral, stabilize, start_frame = options["neutral"], options["stabilize"], options["start_frame"]
     cutoff = options["cutoff"] if filter else 8.0
-    capture = load_capture(input, units=units, rate=rate, up_axis=up_axis, keep_zeros=bool(options.get("keep_zeros")))
+    capture = load_capture(input, units=units, rate=rate, up_axis=up_axis, keep_zeros=bool(options.get("keep_zeros")),
+                           allow=options.get("allow", ()))
     capture, reports = condition_capture(capture, Conditioning(
         trim=tuple(trim) if trim is not None else None, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff,
         resample=resample, neutral=neutral, stabilize=stabilize, start_frame=start_frame,

@@ -35,11 +35,12 @@ def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
     return read_mesh(path, units=units), []
 
 
-def load_capture(path, *, units=None, rate=None, up_axis=None, keep_zeros=False) -> Capture:
+def load_capture(path, *, units=None, rate=None, up_axis=None, keep_zeros=False, allow=()) -> Capture:
     """Read any capture usdface understands: a capture file (.ma .c3d .trc .csv), a capture layer,
     or (Python API) an in-memory stage or layer holding a marker set.
 
-    ``keep_zeros``: C3D samples at exactly (0, 0, 0) stay positions instead of gaps."""
+    ``keep_zeros``: C3D samples at exactly (0, 0, 0) stay positions instead of gaps; ``allow``:
+    plausibility checks accepted (a reader's ``rate`` and ``frame-count`` limits among them)."""
     if is_in_memory(path) or Path(path).suffix.lower() in USD_SUFFIXES:
         from .capture_layer import read_capture_layer
 
@@ -53,7 +54,8 @@ def load_capture(path, *, units=None, rate=None, up_axis=None, keep_zeros=False)
         return capture
     from ..io.captures import read_capture
 
-    return read_capture(path, units=units, rate=rate, up_axis=up_axis, keep_zeros=keep_zeros)
+    return read_capture(path, units=units, rate=rate, up_axis=up_axis, keep_zeros=keep_zeros,
+                        allow=frozenset(allow))
 
 
 def load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path, *, method=None):
