@@ -89,19 +89,6 @@ def test_options_objects_are_checked():
         api.import_capture("x.ma", options=42)
 
 
-def test_the_readme_example_runs(repo_root, monkeypatch, capsys):
-    """The README's Python API example, run as written from the repository root."""
-    import re
-
-    text = (repo_root / "README.md").read_text()
-    section = text[text.index("## Python API"):]
-    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
-    monkeypatch.chdir(repo_root)
-    exec(compile(code, "README.md", "exec"), {})
-    out = capsys.readouterr().out
-    assert "300 frames;" in out and out.strip().endswith("shot.usda")
-
-
 def test_skeleton_in_memory_matches_the_point_cache(in_memory, sample_assets):
     """api.skel authors the skeleton into a layer of its own; the shared evaluator deforms it within
     the documented DCC-safe error of the point cache (head motion included). The skeleton is built

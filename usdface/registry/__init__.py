@@ -25,7 +25,8 @@ from .declarations import CommandGroup, Input, Output, Processor
 from .result import Result
 
 __all__ = ["Processor", "Input", "Output", "CommandGroup", "Result", "processors", "commands", "find", "register",
-           "unregister", "groups", "batch_steps", "call", "timed_calls", "command_table", "ENTRY_POINT_GROUP"]
+           "unregister", "groups", "batch_steps", "call", "timed_calls", "command_table", "api_table",
+           "ENTRY_POINT_GROUP"]
 
 log = logging.getLogger("usdface")
 
@@ -159,4 +160,17 @@ def command_table() -> str:
 
     rows = ["| command | what it does |", "|---|---|"]
     rows += [f"| `{cell(p.synopsis())}` | {cell(p.summary)} |" for p in commands()]
+    return "\n".join(rows) + "\n"
+
+
+def api_table() -> str:
+    """The README's table of :mod:`usdface.api` functions (markdown): each command's function, its
+    inputs (positional, then keyword-only), its options class and its outputs; kept equal to the
+    README's copy by a test."""
+    rows = ["| function | inputs | options | outputs |", "|---|---|---|---|"]
+    for p in commands():
+        ins = [i.name if i.positional else f"{i.name}=" for i in p.inputs]
+        outs = [f"{o.name}=" for o in p.outputs] + (["into="] if any(o.kind == "usd" for o in p.outputs) else [])
+        rows.append(f"| `{p.api_name}` | {', '.join(f'`{n}`' for n in ins) or '-'} | `{p.options.__name__}` | "
+                    f"{', '.join(f'`{n}`' for n in outs) or '-'} |")
     return "\n".join(rows) + "\n"
