@@ -9,18 +9,21 @@ import; :func:`configure` then points numba at a usdface cache folder that is wr
 ``<tmp>/usdface-numba-<uid>``) and exports it as ``NUMBA_CACHE_DIR`` so worker processes
 (``usdface batch``) reuse the same compiled code. ``NUMBA_CACHE_DIR`` set by the user always wins.
 
-The first run compiles the geodesic kernels (15 s on an idle 2-core machine, 50 s on a busy one); :func:`notice_compiling`
-says so on stderr instead of leaving the terminal silent.
+A first run compiles the kernels it calls (the geodesic search, the tracker, the tissue model, the
+renderer, the blend-shape solver: seconds each); :func:`compiling` says so on stderr before, and
+how long it took after, instead of leaving the terminal silent.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
 import tempfile
+import time
 from pathlib import Path
 
-__all__ = ["AVAILABLE", "CACHE", "cache_dir", "configure", "is_cached", "njit", "notice_compiling"]
+__all__ = ["AVAILABLE", "CACHE", "cache_dir", "compiling", "configure", "is_cached", "njit", "notice_compiling"]
 
 _PACKAGE = Path(__file__).resolve().parent
 _configured: dict = {}
@@ -109,7 +112,7 @@ def is_cached(dispatcher) -> bool | None:
         return None
 
 
-def notice_compiling(what: str, *dispatchers, seconds: str = "15-60 s") -> bool:
+def notice_compiling(what: str, *dispatchers) -> bool:
     """Print one line on stderr when ``dispatchers`` are about to compile (first run only).
 
     Silent when usdface's logger is quieted (``-q``), when the kernels are cached, and after the
@@ -124,8 +127,23 @@ def notice_compiling(what: str, *dispatchers, seconds: str = "15-60 s") -> bool:
     _noticed.add(what)
     where = cache_dir(dispatchers[0])
     tail = f"; cached in {where} for later runs" if where else ""
-    print(f"usdface: compiling {what} (first run only, typically {seconds}){tail}", file=sys.stderr, flush=True)
+    print(f"usdface: compiling {what} (first run only){tail}", file=sys.stderr, flush=True)
     return True
+
+
+@contextlib.contextmanager
+def compiling(what: str, *dispatchers):
+    """Around the first calls of numba kernels: a line on stderr before they compile (first run
+    only, :func:`notice_compiling`) and one after, with the time it took, measured (a first run
+    that only says "compiling" leaves the user guessing how long the next will be)."""
+    noticed = notice_compiling(what, *dispatchers)
+    started = time.perf_counter()
+    try:
+        yield noticed
+    finally:
+        if noticed:
+            print(f"usdface: compiled {what} in {time.perf_counter() - started:.1f} s (cached: later runs skip this)",
+                  file=sys.stderr, flush=True)
 
 
 #: ``cache=`` for usdface's numba kernels (see :func:`configure`)

@@ -3,6 +3,8 @@ they compile (usdface.numba_cache)."""
 from __future__ import annotations
 
 import os
+import re
+import time
 import shutil
 import subprocess
 import sys
@@ -112,3 +114,23 @@ def test_notice_only_when_compiling(capsys, monkeypatch):
     assert numba_cache.notice_compiling("the test kernels", Fresh()) is False     # once per process
     assert numba_cache.notice_compiling("other kernels", marching._march_many) is False
     assert capsys.readouterr().err == ""
+
+
+def test_compiling_says_how_long_it_took(capsys, monkeypatch):
+    """A first run prints the measured compile time after the notice (the README's guess of
+    15-60 s was 3.5 s on a user's machine)."""
+    monkeypatch.setattr(numba_cache, "_noticed", set())
+
+    class Fresh:
+        overloads = {}
+        _cache = None
+
+    monkeypatch.setattr(numba_cache, "is_cached", lambda d: False if isinstance(d, Fresh) else True)
+    with numba_cache.compiling("the test kernels", Fresh()) as noticed:
+        time.sleep(0.2)
+    err = capsys.readouterr().err.splitlines()
+    assert noticed and err[0].startswith("usdface: compiling the test kernels (first run only")
+    assert re.fullmatch(r"usdface: compiled the test kernels in 0\.[2-9] s \(cached: later runs skip this\)", err[1])
+    with numba_cache.compiling("the test kernels", Fresh()) as noticed:  # once per process, then silent
+        pass
+    assert not noticed and capsys.readouterr().err == ""
