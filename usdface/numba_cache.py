@@ -10,12 +10,12 @@ import; :func:`configure` then points numba at a usdface cache folder that is wr
 (``usdface batch``) reuse the same compiled code. ``NUMBA_CACHE_DIR`` set by the user always wins.
 
 A first run compiles the kernels it calls (the geodesic search, the tracker, the tissue model, the
-renderer, the blend-shape solver: seconds each); :func:`compiling` says so on stderr before, and
-how long it took after, instead of leaving the terminal silent.
+renderer, the blend-shape solver: seconds each); every compile of a usdface kernel is announced on
+stderr as it starts (once per group) and :func:`compile_report` gives the measured total after,
+instead of leaving the terminal silent or guessing.
 """
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import sys
@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-__all__ = ["AVAILABLE", "CACHE", "cache_dir", "compiling", "configure", "is_cached", "njit", "notice_compiling"]
+__all__ = ["AVAILABLE", "CACHE", "cache_dir", "compile_report", "configure", "is_cached", "njit", "notice_compiling"]
 
 _PACKAGE = Path(__file__).resolve().parent
 _configured: dict = {}
@@ -131,19 +131,64 @@ def notice_compiling(what: str, *dispatchers) -> bool:
     return True
 
 
-@contextlib.contextmanager
-def compiling(what: str, *dispatchers):
-    """Around the first calls of numba kernels: a line on stderr before they compile (first run
-    only, :func:`notice_compiling`) and one after, with the time it took, measured (a first run
-    that only says "compiling" leaves the user guessing how long the next will be)."""
-    noticed = notice_compiling(what, *dispatchers)
-    started = time.perf_counter()
-    try:
-        yield noticed
-    finally:
-        if noticed:
-            print(f"usdface: compiled {what} in {time.perf_counter() - started:.1f} s (cached: later runs skip this)",
-                  file=sys.stderr, flush=True)
+#: how a first run names the kernels it compiles, by module
+KERNEL_GROUPS = {"usdface.distance": "the geodesic search kernels", "usdface.preview": "the preview renderer's kernels",
+                 "usdface.tracking": "the tracker's kernels", "usdface.tissue": "the tissue model's kernels",
+                 "usdface.blendshape": "the blend-shape solver's kernels"}
+_compiled = {"kernels": 0, "seconds": 0.0, "depth": 0, "started": 0.0, "groups": []}
+
+
+def _group(module: str) -> str | None:
+    return next((what for prefix, what in KERNEL_GROUPS.items() if module.startswith(prefix)),
+                "usdface's kernels" if module.startswith("usdface") else None)
+
+
+def _listen_to_compiles() -> None:
+    """Every compile of a usdface kernel (numba's "numba:compile" event: a cache miss, never a cache
+    load) is announced once per group (:func:`notice_compiling`) and timed; :func:`compile_report`
+    says the total afterwards."""
+    from numba.core import event
+
+    class Listener(event.Listener):
+        def on_start(self, ev):
+            what = _group(getattr(ev.data["dispatcher"].py_func, "__module__", "") or "")
+            if what is None:
+                return
+            if _compiled["depth"] == 0:
+                _compiled["started"] = time.perf_counter()
+            _compiled["depth"] += 1
+            if what not in _compiled["groups"]:
+                _compiled["groups"].append(what)
+                _announce(what, ev.data["dispatcher"])
+
+        def on_end(self, ev):
+            if _group(getattr(ev.data["dispatcher"].py_func, "__module__", "") or "") is None:
+                return
+            _compiled["depth"] -= 1
+            _compiled["kernels"] += 1
+            if _compiled["depth"] == 0:  # a kernel calling another compiles both: time the outer once
+                _compiled["seconds"] += time.perf_counter() - _compiled["started"]
+
+    event.register("numba:compile", Listener())
+
+
+def _announce(what: str, dispatcher) -> None:
+    if what in _noticed or logging.getLogger("usdface").getEffectiveLevel() > logging.WARNING:
+        return
+    _noticed.add(what)
+    where = cache_dir(dispatcher)
+    tail = f"; cached in {where} for later runs" if where else ""
+    print(f"usdface: compiling {what} (first run only){tail}", file=sys.stderr, flush=True)
+
+
+def compile_report() -> str | None:
+    """The measured time of the kernels compiled in this process so far, as a line for the user
+    (None when nothing compiled: every kernel came from the cache)."""
+    if not _compiled["kernels"]:
+        return None
+    n = _compiled["kernels"]
+    return (f"usdface: compiled {n} kernel{'s' if n > 1 else ''} ({', '.join(_compiled['groups'])}) in "
+            f"{_compiled['seconds']:.1f} s, first run only: later runs load them from the cache")
 
 
 #: ``cache=`` for usdface's numba kernels (see :func:`configure`)
@@ -152,6 +197,7 @@ CACHE = configure()
 try:  # numba is a dependency; without it the kernels' callers run their numpy paths
     import numba as _numba
     AVAILABLE = True
+    _listen_to_compiles()
 except ImportError:  # pragma: no cover - exercised only without numba
     _numba = None
     AVAILABLE = False

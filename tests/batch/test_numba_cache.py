@@ -15,6 +15,9 @@ import pytest
 from usdface import numba_cache
 
 REPO = Path(__file__).resolve().parents[2]
+SA = REPO / "sample_assets"
+MESH = "makehuman_hm08_face_cm.obj"
+LAYOUT = "makehuman_hm08_face.layout.json"
 
 SCRIPT = """
 import os, sys, numpy as np
@@ -116,21 +119,27 @@ def test_notice_only_when_compiling(capsys, monkeypatch):
     assert capsys.readouterr().err == ""
 
 
-def test_compiling_says_how_long_it_took(capsys, monkeypatch):
-    """A first run prints the measured compile time after the notice (the README's guess of
-    15-60 s was 3.5 s on a user's machine)."""
-    monkeypatch.setattr(numba_cache, "_noticed", set())
-
-    class Fresh:
-        overloads = {}
-        _cache = None
-
-    monkeypatch.setattr(numba_cache, "is_cached", lambda d: False if isinstance(d, Fresh) else True)
-    with numba_cache.compiling("the test kernels", Fresh()) as noticed:
-        time.sleep(0.2)
-    err = capsys.readouterr().err.splitlines()
-    assert noticed and err[0].startswith("usdface: compiling the test kernels (first run only")
-    assert re.fullmatch(r"usdface: compiled the test kernels in 0\.[2-9] s \(cached: later runs skip this\)", err[1])
-    with numba_cache.compiling("the test kernels", Fresh()) as noticed:  # once per process, then silent
-        pass
-    assert not noticed and capsys.readouterr().err == ""
+def test_a_first_run_says_what_compiles_and_how_long_it_took(tmp_path):
+    """Every first compile of a usdface kernel is announced and timed (the README guessed
+    15-60 s where a user measured 3.5 s; the first `track` compiled silently for 5 s): a fresh
+    cache folder, a kernel module of each group, the command's last line gives the measured time."""
+    code = ("import numpy as np, sys\n"
+            "from usdface import numba_cache\n"
+            "from usdface.blendshape import _kernels as k\n"
+            "from usdface.console import main\n"
+            "sys.exit(main(['plugin-path', '-q']) or 0)\n")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    first = subprocess.run([sys.executable, "-m", "usdface", "run", "--mesh", str(SA / "meshes" / MESH), "--capture",
+                            str(SA / "capture" / "JawMoCap.ma"), "--layout", str(SA / "layouts" / LAYOUT),
+                            "--trim", "0", "20", "--method", "geodesic", "-o", str(tmp_path / "a")],
+                           env=env, capture_output=True, text=True, timeout=600)
+    assert first.returncode == 0, first.stderr
+    lines = first.stderr.splitlines()
+    assert any(line.startswith("usdface: compiling the geodesic search kernels (first run only") for line in lines)
+    assert re.fullmatch(r"usdface: compiled \d+ kernels? \(the geodesic search kernels.*\) in \d+\.\d s, first run "
+                        r"only: later runs load them from the cache", lines[-1]), lines
+    again = subprocess.run([sys.executable, "-m", "usdface", "run", "--mesh", str(SA / "meshes" / MESH), "--capture",
+                            str(SA / "capture" / "JawMoCap.ma"), "--layout", str(SA / "layouts" / LAYOUT),
+                            "--trim", "0", "20", "--method", "geodesic", "-o", str(tmp_path / "b")],
+                           env=env, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0 and "compil" not in again.stderr

@@ -127,6 +127,18 @@ def main(argv: list[str] | None = None) -> int:
     processor = args._processor
     name = f"usdface {processor.name}"
     try:
+        return _run(args, processor, name, parser)
+    finally:
+        # the kernels a first run compiled, and how long they took (only where numba was loaded)
+        kernels = sys.modules.get("usdface.numba_cache")
+        report = kernels.compile_report() if kernels is not None else None
+        if report and not args.quiet:
+            print(report, file=sys.stderr, flush=True)
+
+
+def _run(args, processor, name: str, parser) -> int:
+    """The command, its errors as one line and an exit code, its Result printed."""
+    try:
         with _terminate_as_interrupt():
             refuse_outputs_over_inputs(args, processor, parser)
             result = run_command(processor, args)
