@@ -100,7 +100,8 @@ def face_stereo(results, quick):
     import cv2
 
     from usdface.scan.calibration import calibration_from_dict
-    from usdface.scan.stereo import compute_disparity, disparity_range
+    from usdface.scan.graphcut import GraphCutParameters
+    from usdface.scan.stereo import MatchingParameters, compute_disparity, disparity_range
     from usdface.scan.synthetic import render_stereo_pair, sample_face
 
     _, _, _, scene = sample_face(ASSETS, "stylized", photo=SHARED / "images" / "astronaut.png")
@@ -116,8 +117,10 @@ def face_stereo(results, quick):
             for m in methods:
                 if quick and m == "graphcut":
                     continue
-                res, t = _t(compute_disparity, pair["first"], pair["second"], method=m, min_disparity=lo,
-                            num_disparities=n, vertical=vertical, max_cycles=3, repeat=1 if m == "graphcut" else 3)
+                params = MatchingParameters(method=m, min_disparity=lo, num_disparities=n, vertical=vertical,
+                                            graphcut=GraphCutParameters(max_cycles=3))
+                res, t = _t(compute_disparity, pair["first"], pair["second"], params,
+                            repeat=1 if m == "graphcut" else 3)
                 z = cal.depth(np.where(res.valid, res.disparity, np.nan))
                 ok = face & np.isfinite(z)
                 err = np.abs(z - pair["depth"])[ok]
@@ -246,8 +249,9 @@ def registration(results, quick):
     from usdface.processors.acquisition import lift_image_landmarks
     from usdface.scan.calibration import calibration_from_dict
     from usdface.scan.landmarks import FACE_LANDMARKS
-    from usdface.scan.register import GenericRegistration, apply_similarity, similarity_fit
-    from usdface.scan.stereo import compute_disparity, disparity_range
+    from usdface.scan.graphcut import GraphCutParameters
+    from usdface.scan.register import GenericRegistration, RegistrationParameters, apply_similarity, similarity_fit
+    from usdface.scan.stereo import MatchingParameters, compute_disparity, disparity_range
     from usdface.scan.surface import camera_to_scan, reconstruct_surface
     from usdface.scan.synthetic import render_stereo_pair, rotation_matrix, sample_face
 
@@ -271,7 +275,7 @@ def registration(results, quick):
         e_best = np.linalg.norm(apply_similarity(g.points, s2, R2, t2) - truth, axis=1).mean()
         height = np.ptp(st.points[:, 1]) * s
         for name, kw in variants.items():
-            res, tt = _t(reg.register, truth, st.triangles(), slm, **kw)
+            res, tt = _t(reg.register, truth, st.triangles(), slm, RegistrationParameters(**kw))
             e = np.linalg.norm(res.points - truth, axis=1).mean()
             e_lm = np.linalg.norm(res.similarity_points - truth, axis=1).mean()
             e_rbf = np.linalg.norm(res.rbf_points - truth, axis=1).mean()
@@ -290,8 +294,9 @@ def registration(results, quick):
         pair = render_stereo_pair(scene, size=(640, 480))
         cal = calibration_from_dict(pair["calibration"])
         lo, n = disparity_range(cal, 500, 700)
-        res = compute_disparity(pair["first"], pair["second"], method=method, min_disparity=lo, num_disparities=n,
-                                max_cycles=2)
+        res = compute_disparity(pair["first"], pair["second"],
+                                MatchingParameters(method=method, min_disparity=lo, num_disparities=n,
+                                                   graphcut=GraphCutParameters(max_cycles=2)))
         z = cal.depth(np.where(res.valid, res.disparity, np.nan))
         surf = reconstruct_surface(cal.points(z), np.isfinite(z), step=2)
         cam = pair["camera"]
@@ -317,7 +322,7 @@ def registration(results, quick):
     pair = render_stereo_pair(scene, size=size)
     cal = calibration_from_dict(pair["calibration"])
     lo, n = disparity_range(cal, 500, 700)
-    res = compute_disparity(pair["first"], pair["second"], method="sgbm", min_disparity=lo, num_disparities=n)
+    res = compute_disparity(pair["first"], pair["second"], MatchingParameters(min_disparity=lo, num_disparities=n))
     z = cal.depth(np.where(res.valid, res.disparity, np.nan))
     surf = reconstruct_surface(cal.points(z), np.isfinite(z), step=1)
     S, F = surf.points / 10.0, surf.triangles
@@ -335,7 +340,7 @@ def registration(results, quick):
             from scipy.spatial import cKDTree
 
             b = GenericRegistration(g10, r10, glm)
-            r0 = b.register(S, F, truth_lm, iterations=0)
+            r0 = b.register(S, F, truth_lm, RegistrationParameters(iterations=0))
             _, idx = cKDTree(S).query(r0.rbf_points)
             return S[idx]
 

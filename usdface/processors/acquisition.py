@@ -132,8 +132,14 @@ def stereo(left, right, output=None, *, calib=None, method: str = "sgbm", dispar
         min_disparity, num_disparities = disparity_range(rcal, *depth_range)
     min_disparity = 0 if min_disparity is None else int(min_disparity)
     num_disparities = 64 if num_disparities is None else int(num_disparities)
-    res = compute_disparity(a, b, method=method, min_disparity=min_disparity, num_disparities=num_disparities,
-                            vertical=is_vertical, block_size=block_size, max_cycles=max_cycles, time_limit=time_limit)
+    from ..scan.graphcut import GraphCutParameters
+    from ..scan.stereo import MatchingParameters
+
+    res = compute_disparity(a, b, MatchingParameters(method=method, min_disparity=min_disparity,
+                                                     num_disparities=num_disparities, vertical=is_vertical,
+                                                     block_size=block_size,
+                                                     graphcut=GraphCutParameters(max_cycles=max_cycles,
+                                                                                 time_limit=time_limit)))
     d = np.where(res.valid, res.disparity, np.nan).astype(np.float32)  # accepted pixels: the scan's
     dmap = fill_background(res.disparity, res.valid, vertical=is_vertical) if fill == "background" else d
     summary = {"left": str(left), "right": str(right), "method": method, "size": [a.shape[1], a.shape[0]],
@@ -346,7 +352,10 @@ def landmarks_train(images, output, *, landmarks=None, points_dir=None, augment=
                 extra_p.append(ap)
             imgs += extra_i
             shapes = np.concatenate([shapes] + extra_p)
-    model = train_aam(imgs, shapes, names=names, model_size=model_size, detector=largest_face_box)
+    from ..scan.aam import AAMTrainingParameters
+
+    model = train_aam(imgs, shapes, names=names, params=AAMTrainingParameters(model_size=model_size),
+                      detector=largest_face_box)
     model.save(out)
     m = model.meta
     return {"output": str(out), "images": len(imgs), "points": len(names), "names": list(names),
@@ -543,8 +552,11 @@ def register(generic, scan, output, *, landmarks=None, generic_landmarks=None, l
                          f"{list_names(far)}")
     GL = glay.positions(mesh, names)
     reg = GenericRegistration(mesh, regions, GL, hole_rings=hole_rings)
-    res = reg.register(S, scan_tris, SL, iterations=iterations, border_weight=1.0 if border else 0.0,
-                       field_iterations=field, locator=loc)
+    from ..scan.register import RegistrationParameters
+
+    res = reg.register(S, scan_tris, SL, RegistrationParameters(iterations=iterations,
+                                                                border_weight=1.0 if border else 0.0,
+                                                                field_iterations=field), locator=loc)
     registered = mesh.with_points(res.points)
     prov = provenance("register", options={"iterations": iterations, "border": border, "field": field,
                                            "holeRings": hole_rings,

@@ -85,7 +85,7 @@ def transfer_shapes(target, output, *, generic=None, generic_shapes=None, generi
     from ..mesh.layout import read_layout
     from ..mesh.topology import find_hole_regions
     from ..scan.landmarks import FACE_LANDMARKS
-    from ..scan.register import GenericRegistration
+    from ..scan.register import GenericRegistration, RegistrationParameters
     from ..usd.blendshape_layer import write_curves_layer
     from ..usd.layers import check_output_path, provenance
     from .import_mesh import load_mesh
@@ -126,8 +126,9 @@ def transfer_shapes(target, output, *, generic=None, generic_shapes=None, generi
                          "at least 4 are needed (20 recommended)")
     gl = glay.positions(rig.mesh, have)
     reg = GenericRegistration(rig.mesh, g_regions, gl).register(
-        tmesh.points, tmesh.triangles(), tl, iterations=iterations, border_weight=1.0 if border else 0.0,
-        field_iterations=field)
+        tmesh.points, tmesh.triangles(), tl, RegistrationParameters(iterations=iterations,
+                                                                    border_weight=1.0 if border else 0.0,
+                                                                    field_iterations=field))
     moved = transfer_rig(rig, g_regions, reg.points, tmesh, t_regions, method=method)
     prov = provenance("shapes transfer", options={"method": method, "border": border, "field": field,
                                                   "iterations": iterations, "landmarks": have},
