@@ -9,7 +9,7 @@ Everything is measured in one run so the ratios compare like with like:
 1. Middlebury motorcycle (741x500, ground truth +inf where unknown): bad-pixel rate
    (|d - gt| > 2 px over the finite ground truth; pixels a method leaves empty count as bad)
    of OpenCV's StereoSGBM (16 and 64 disparities, block 5, its other defaults: the baseline) and
-   of `usdface stereo` as the command runs it (the processor function, ``--ground-truth``): its
+   of `usdface stereo` as the command runs it (its Python API function, ``--ground-truth``): its
    default, ``--fill none``, ``--method sgbm-wls`` and ``--method graphcut`` (3 cycles); graph-cut
    time against the 60 s target.
 2. Rendered face stereo (the stylized MakeHuman face with the photo and skin texture, exact
@@ -56,7 +56,8 @@ def _t(fn, *a, repeat=1, **k):
 def middlebury(results, quick):
     import cv2
 
-    from usdface.processors.acquisition import stereo
+    from usdface import api
+    from usdface.options import StereoOptions
     from usdface.scan.stereo import bad_pixel_rate
 
     d = SHARED / "images" / "stereo"
@@ -83,9 +84,11 @@ def middlebury(results, quick):
             ("usdface stereo --method graphcut", {"method": "graphcut", "max_cycles": 1 if quick else 3,
                                                   "time_limit": 55.0})]
     for label, kw in runs:
-        s, t = _t(stereo, d / "motorcycle_left.png", d / "motorcycle_right.png", ground_truth=gt_path, **kw)
-        g = s["groundTruth"]
-        rows.append((label, {k: g[k] for k in ("bad", "bad_known", "density", "pixels")}, s["disparitySeconds"]))
+        options = StereoOptions(ground_truth=str(gt_path), **kw)
+        s, t = _t(api.stereo, d / "motorcycle_left.png", d / "motorcycle_right.png", options)
+        g = s.summary["groundTruth"]
+        kept = {k: g[k] for k in ("bad", "bad_known", "density", "pixels")}
+        rows.append((label, kept, s.summary["disparitySeconds"]))
     print("\n== Middlebury motorcycle 741x500: bad-pixel rate (|d - gt| > 2 px, missing counted bad) ==")
     print(f"{'method':52s} {'bad (all gt px)':>15s} {'bad (given px)':>15s} {'density':>8s} {'time s':>8s}")
     for label, r, t in rows:
@@ -246,10 +249,10 @@ def registration(results, quick):
     from usdface.io.meshes import read_mesh
     from usdface.mesh.layout import read_layout
     from usdface.mesh.topology import find_hole_regions
-    from usdface.processors.acquisition import lift_image_landmarks
     from usdface.scan.calibration import calibration_from_dict
     from usdface.scan.landmarks import FACE_LANDMARKS
     from usdface.scan.graphcut import GraphCutParameters
+    from usdface.scan.image_landmarks import lift_image_landmarks
     from usdface.scan.register import GenericRegistration, RegistrationParameters, apply_similarity, similarity_fit
     from usdface.scan.stereo import MatchingParameters, compute_disparity, disparity_range
     from usdface.scan.surface import camera_to_scan, reconstruct_surface

@@ -6,17 +6,10 @@ import pytest
 
 import usdface.cli as cli_module
 
-PLUGINS = ("usdface.processors.skel", "usdface.processors.lift")
-
 
 def run(*args) -> int:
-    """`usdface ARGS...` in-process, with the skel and lift subcommands registered."""
-    saved = cli_module.PLUGIN_COMMANDS
-    cli_module.PLUGIN_COMMANDS = saved + tuple(m for m in PLUGINS if m not in saved)
-    try:
-        return cli_module.main([str(a) for a in args])
-    finally:
-        cli_module.PLUGIN_COMMANDS = saved
+    """`usdface ARGS...` in-process; returns the exit code."""
+    return cli_module.main([str(a) for a in args])
 
 
 @pytest.fixture(scope="session")

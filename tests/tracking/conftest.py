@@ -39,13 +39,10 @@ def tracked(clip, clip_files):
 
 
 @pytest.fixture
-def cli(monkeypatch):
-    """`usdface ARGS...` in-process with the track command registered; returns the exit code."""
+def cli():
+    """`usdface ARGS...` in-process; returns the exit code."""
     import usdface.cli as cli_module
 
-    if "usdface.processors.track" not in cli_module.PLUGIN_COMMANDS:
-        monkeypatch.setattr(cli_module, "PLUGIN_COMMANDS",
-                            tuple(cli_module.PLUGIN_COMMANDS) + ("usdface.processors.track",))
     return lambda *args: cli_module.main([str(a) for a in args])
 
 

@@ -525,4 +525,4 @@ def augment_sample(image, points, n: int, *, seed: int = 0, rotation: float = 8.
         im += rng.normal(0, 3.0, im.shape)
         out_i.append(np.clip(im, 0, 255).astype(np.uint8))
         out_p.append(pts @ M[:, :2].T + M[:, 2])
-    return out_i, np.asarray(out_p)
+    return out_i, np.asarray(out_p).reshape(len(out_p), *pts.shape)  # (0, P, 2) for no copies

@@ -40,7 +40,10 @@ from .mesh_operators import (boundary_edge_flags, boundary_segments, boundary_ve
 from .similarity import apply_similarity, similarity_fit
 
 __all__ = ["similarity_fit", "apply_similarity", "GenericRegistration", "RegistrationParameters", "RegistrationResult",
-           "register_generic", "hole_vertices", "boundary_vertex_mask"]
+           "register_generic", "hole_vertices", "boundary_vertex_mask", "HOLE_RINGS"]
+
+#: rings of vertices around the eye and mouth holes also left without a data term
+HOLE_RINGS = 1
 
 
 @dataclass(frozen=True)
@@ -213,7 +216,7 @@ class GenericRegistration:
     >>> res = reg.register(scan_points, scan_triangles, scan_landmarks)        # doctest: +SKIP
     """
 
-    def __init__(self, mesh, regions, landmarks, *, hole_rings: int = 1):
+    def __init__(self, mesh, regions, landmarks, *, hole_rings: int = HOLE_RINGS):
         from ..mesh.closest import SurfaceLocator
 
         if not regions:
@@ -467,7 +470,8 @@ class GenericRegistration:
 
 
 def register_generic(mesh, regions, generic_landmarks, scan_points, scan_triangles, scan_landmarks,
-                     params: RegistrationParameters | None = None, *, hole_rings: int = 1) -> RegistrationResult:
+                     params: RegistrationParameters | None = None, *,
+                     hole_rings: int = HOLE_RINGS) -> RegistrationResult:
     """One-call form of :class:`GenericRegistration`."""
     return GenericRegistration(mesh, regions, generic_landmarks, hole_rings=hole_rings).register(
         scan_points, scan_triangles, scan_landmarks, params)

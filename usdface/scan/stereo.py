@@ -33,13 +33,11 @@ import numpy as np
 
 from ..errors import InputError, OptionError
 from .graphcut import GraphCutParameters
+from .methods import DEFAULT_NUM_DISPARITIES
 from .methods import STEREO_METHODS as METHODS  # named once
 
 __all__ = ["METHODS", "DEFAULT_NUM_DISPARITIES", "MatchingParameters", "DisparityResult", "compute_disparity",
            "bad_pixel_rate", "disparity_range", "check_rectified", "check_pair", "fill_background"]
-
-#: disparities searched when neither a disparity range nor a depth range is given
-DEFAULT_NUM_DISPARITIES = 64
 
 
 @dataclass(frozen=True)
