@@ -244,8 +244,6 @@ def _subdivide(mesh, n: int = 2):
 
 
 def registration(results, quick):
-    import cv2
-
     from usdface.io.meshes import read_mesh
     from usdface.mesh.layout import read_layout
     from usdface.mesh.topology import find_hole_regions

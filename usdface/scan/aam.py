@@ -434,7 +434,6 @@ def train_aam(images, shapes, *, names, params: AAMTrainingParameters = AAMTrain
     Q, _ = np.linalg.qr(np.hstack([sim, modes]))
     Q = Q[:, : 4 + modes.shape[1]]
     # template pixels
-    tri = Delaunay(s0).simplices.astype(np.int64)
     xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
     grid = np.stack([xs.ravel(), ys.ravel()], axis=1)
     dl = Delaunay(s0)
