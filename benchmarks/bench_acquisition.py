@@ -9,7 +9,7 @@ Everything is measured in one run so the ratios compare like with like:
 1. Middlebury motorcycle (741x500, ground truth +inf where unknown): bad-pixel rate
    (|d - gt| > 2 px over the finite ground truth; pixels a method leaves empty count as bad)
    of OpenCV's StereoSGBM (16 and 64 disparities, block 5, its other defaults: the baseline) and
-   of `usdface stereo` as the command runs it (the processor function, ``--ground-truth``): its
+   of `usdface stereo` as the command runs it (its Python API function, ``--ground-truth``): its
    default, ``--fill none``, ``--method sgbm-wls`` and ``--method graphcut`` (3 cycles); graph-cut
    time against the 60 s target.
 2. Rendered face stereo (the stylized MakeHuman face with the photo and skin texture, exact
@@ -56,7 +56,8 @@ def _t(fn, *a, repeat=1, **k):
 def middlebury(results, quick):
     import cv2
 
-    from usdface.processors.acquisition import stereo
+    from usdface import api
+    from usdface.options import StereoOptions
     from usdface.scan.stereo import bad_pixel_rate
 
     d = SHARED / "images" / "stereo"
@@ -83,9 +84,11 @@ def middlebury(results, quick):
             ("usdface stereo --method graphcut", {"method": "graphcut", "max_cycles": 1 if quick else 3,
                                                   "time_limit": 55.0})]
     for label, kw in runs:
-        s, t = _t(stereo, d / "motorcycle_left.png", d / "motorcycle_right.png", ground_truth=gt_path, **kw)
-        g = s["groundTruth"]
-        rows.append((label, {k: g[k] for k in ("bad", "bad_known", "density", "pixels")}, s["disparitySeconds"]))
+        options = StereoOptions(ground_truth=str(gt_path), **kw)
+        s, t = _t(api.stereo, d / "motorcycle_left.png", d / "motorcycle_right.png", options)
+        g = s.summary["groundTruth"]
+        kept = {k: g[k] for k in ("bad", "bad_known", "density", "pixels")}
+        rows.append((label, kept, s.summary["disparitySeconds"]))
     print("\n== Middlebury motorcycle 741x500: bad-pixel rate (|d - gt| > 2 px, missing counted bad) ==")
     print(f"{'method':52s} {'bad (all gt px)':>15s} {'bad (given px)':>15s} {'density':>8s} {'time s':>8s}")
     for label, r, t in rows:
@@ -100,7 +103,8 @@ def face_stereo(results, quick):
     import cv2
 
     from usdface.scan.calibration import calibration_from_dict
-    from usdface.scan.stereo import compute_disparity, disparity_range
+    from usdface.scan.graphcut import GraphCutParameters
+    from usdface.scan.stereo import MatchingParameters, compute_disparity, disparity_range
     from usdface.scan.synthetic import render_stereo_pair, sample_face
 
     _, _, _, scene = sample_face(ASSETS, "stylized", photo=SHARED / "images" / "astronaut.png")
@@ -116,8 +120,10 @@ def face_stereo(results, quick):
             for m in methods:
                 if quick and m == "graphcut":
                     continue
-                res, t = _t(compute_disparity, pair["first"], pair["second"], method=m, min_disparity=lo,
-                            num_disparities=n, vertical=vertical, max_cycles=3, repeat=1 if m == "graphcut" else 3)
+                params = MatchingParameters(method=m, min_disparity=lo, num_disparities=n, vertical=vertical,
+                                            graphcut=GraphCutParameters(max_cycles=3))
+                res, t = _t(compute_disparity, pair["first"], pair["second"], params,
+                            repeat=1 if m == "graphcut" else 3)
                 z = cal.depth(np.where(res.valid, res.disparity, np.nan))
                 ok = face & np.isfinite(z)
                 err = np.abs(z - pair["depth"])[ok]
@@ -238,16 +244,15 @@ def _subdivide(mesh, n: int = 2):
 
 
 def registration(results, quick):
-    import cv2
-
     from usdface.io.meshes import read_mesh
     from usdface.mesh.layout import read_layout
     from usdface.mesh.topology import find_hole_regions
-    from usdface.processors.acquisition import lift_image_landmarks
     from usdface.scan.calibration import calibration_from_dict
     from usdface.scan.landmarks import FACE_LANDMARKS
-    from usdface.scan.register import GenericRegistration, apply_similarity, similarity_fit
-    from usdface.scan.stereo import compute_disparity, disparity_range
+    from usdface.scan.graphcut import GraphCutParameters
+    from usdface.scan.image_landmarks import lift_image_landmarks
+    from usdface.scan.register import GenericRegistration, RegistrationParameters, apply_similarity, similarity_fit
+    from usdface.scan.stereo import MatchingParameters, compute_disparity, disparity_range
     from usdface.scan.surface import camera_to_scan, reconstruct_surface
     from usdface.scan.synthetic import render_stereo_pair, rotation_matrix, sample_face
 
@@ -271,7 +276,7 @@ def registration(results, quick):
         e_best = np.linalg.norm(apply_similarity(g.points, s2, R2, t2) - truth, axis=1).mean()
         height = np.ptp(st.points[:, 1]) * s
         for name, kw in variants.items():
-            res, tt = _t(reg.register, truth, st.triangles(), slm, **kw)
+            res, tt = _t(reg.register, truth, st.triangles(), slm, RegistrationParameters(**kw))
             e = np.linalg.norm(res.points - truth, axis=1).mean()
             e_lm = np.linalg.norm(res.similarity_points - truth, axis=1).mean()
             e_rbf = np.linalg.norm(res.rbf_points - truth, axis=1).mean()
@@ -290,8 +295,9 @@ def registration(results, quick):
         pair = render_stereo_pair(scene, size=(640, 480))
         cal = calibration_from_dict(pair["calibration"])
         lo, n = disparity_range(cal, 500, 700)
-        res = compute_disparity(pair["first"], pair["second"], method=method, min_disparity=lo, num_disparities=n,
-                                max_cycles=2)
+        res = compute_disparity(pair["first"], pair["second"],
+                                MatchingParameters(method=method, min_disparity=lo, num_disparities=n,
+                                                   graphcut=GraphCutParameters(max_cycles=2)))
         z = cal.depth(np.where(res.valid, res.disparity, np.nan))
         surf = reconstruct_surface(cal.points(z), np.isfinite(z), step=2)
         cam = pair["camera"]
@@ -317,7 +323,7 @@ def registration(results, quick):
     pair = render_stereo_pair(scene, size=size)
     cal = calibration_from_dict(pair["calibration"])
     lo, n = disparity_range(cal, 500, 700)
-    res = compute_disparity(pair["first"], pair["second"], method="sgbm", min_disparity=lo, num_disparities=n)
+    res = compute_disparity(pair["first"], pair["second"], MatchingParameters(min_disparity=lo, num_disparities=n))
     z = cal.depth(np.where(res.valid, res.disparity, np.nan))
     surf = reconstruct_surface(cal.points(z), np.isfinite(z), step=1)
     S, F = surf.points / 10.0, surf.triangles
@@ -335,7 +341,7 @@ def registration(results, quick):
             from scipy.spatial import cKDTree
 
             b = GenericRegistration(g10, r10, glm)
-            r0 = b.register(S, F, truth_lm, iterations=0)
+            r0 = b.register(S, F, truth_lm, RegistrationParameters(iterations=0))
             _, idx = cKDTree(S).query(r0.rbf_points)
             return S[idx]
 

@@ -6,6 +6,7 @@ import pytest
 
 from usdface import cli
 
+
 def run(*args):
     return cli.main([str(a) for a in args])
 
@@ -189,11 +190,12 @@ def test_unrectified_calibrated_pair(tmp_path, sample_assets, shared_data):
     import cv2
 
     from usdface.mesh.closest import SurfaceLocator
-    from usdface.processors.acquisition import lift_image_landmarks, scan_camera
+    from usdface.scan.image_landmarks import lift_image_landmarks
     from usdface.scan.render import PinholeCamera, render_view
     from usdface.scan.surface import camera_to_scan
     from usdface.scan.synthetic import render_stereo_pair, rotation_matrix, sample_face
     from usdface.usd.mesh_layer import read_mesh_layer
+    from usdface.usd.scan_inputs import scan_camera
 
     _, _, _, scene = sample_face(sample_assets, "stylized", photo=shared_data / "images" / "astronaut.png")
     pair = render_stereo_pair(scene, size=(400, 300))
@@ -226,3 +228,62 @@ def test_unrectified_calibrated_pair(tmp_path, sample_assets, shared_data):
     true_lm = camera_to_scan(cam1.to_camera(scene.landmarks()) @ R1.T)
     err = np.linalg.norm(np.array([lifted[n] for n in FACE_LANDMARKS]) - true_lm, axis=1)
     assert np.median(err) < 3.0  # mm
+
+
+def test_landmarks_train_augment_zero_or_negative_is_one_clear_line(tmp_path, shared_data, sample_assets, capsys):
+    """--augment 0 or -1 with one annotated image used to end in a numpy traceback (exit 1)."""
+    photo = shared_data / "images" / "astronaut.png"
+    hand = sample_assets / "landmarks" / "astronaut.landmarks.json"
+    assert run("landmarks", "train", photo, "--landmarks", hand, "--augment", -1, "-o", tmp_path / "a.npz") == 2
+    assert capsys.readouterr().err.strip().endswith("--augment -1: expected a whole number >= 0")
+    assert run("landmarks", "train", photo, "--landmarks", hand, "--augment", 0, "-o", tmp_path / "a.npz") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith("AAM training needs at least 2 annotated images (augment a single one)")
+    assert not (tmp_path / "a.npz").exists()
+
+
+def test_stereo_and_register_in_memory(scene_files, sample_assets, tmp_path, monkeypatch):
+    """The Python API: the scan authored into a layer, the generic registered onto it from an
+    in-memory generic, nothing written; the same points as through files."""
+    from pxr import Sdf
+
+    from usdface import api
+    from usdface.errors import OptionError
+    from usdface.options import RegisterOptions, StereoOptions
+    from usdface.usd.mesh_layer import read_mesh_layer
+
+    d, _, _ = scene_files
+    glm = sample_assets / "landmarks" / "makehuman_hm08_face.landmarks.layout.json"
+    stereo_options = StereoOptions(calib=str(d / "calib.json"), depth_range=(500, 700))
+    register_options = RegisterOptions(landmarks=str(d / "lm.json"), generic_landmarks=str(glm), iterations=4)
+    files = tmp_path / "files"
+    files.mkdir()
+    assert run("stereo", d / "L.png", d / "R.png", "--calib", d / "calib.json", "--depth-range", 500, 700,
+               "-o", files / "scan.usdc", "-q") == 0
+    assert run("register", "--generic", d / "generic.usdc", "--scan", files / "scan.usdc", "--landmarks",
+               d / "lm.json", "--generic-landmarks", glm, "--iterations", 4, "-o", files / "reg.usdc", "-q") == 0
+    readonly = tmp_path / "readonly"
+    readonly.mkdir()
+    readonly.chmod(0o555)
+    monkeypatch.chdir(readonly)
+    try:
+        scan = Sdf.Layer.CreateAnonymous("scan.usda")
+        result = api.stereo(d / "L.png", d / "R.png", stereo_options, into=scan)
+        assert result.layer is scan and result.summary["points"] == read_mesh_layer(files / "scan.usdc")[0].n_points
+        generic = api.import_mesh(d / "generic.usdc").layer
+        registered = api.register(generic, scan, register_options)
+        assert isinstance(registered.layer, Sdf.Layer) and registered.files == {}
+        in_memory, regions = read_mesh_layer(registered.layer)
+        on_disk, _ = read_mesh_layer(files / "reg.usdc")
+        assert np.allclose(in_memory.points, on_disk.points, atol=1e-5)
+        assert [r.name for r in regions] == ["outerBorder", "mouth", "leftEye", "rightEye"]
+        # an in-memory generic has no landmarks file beside it; an in-memory output no layout beside it
+        with pytest.raises(OptionError, match="the generic is in-memory layer"):
+            api.register(generic, scan, RegisterOptions(landmarks=str(d / "lm.json")))
+        with pytest.raises(OptionError, match=r"say where the carried layout goes \(layout_output=\)"):
+            api.register(generic, scan, RegisterOptions(
+                landmarks=str(d / "lm.json"), generic_landmarks=str(glm),
+                layout=str(sample_assets / "layouts" / "makehuman_hm08_face.layout.json")))
+        assert list(readonly.iterdir()) == []
+    finally:
+        readonly.chmod(0o755)

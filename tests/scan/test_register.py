@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from usdface.errors import ComputeError, MeshError
-from usdface.scan.register import GenericRegistration, apply_similarity, similarity_fit
+from usdface.scan.register import GenericRegistration, RegistrationParameters, apply_similarity, similarity_fit
 from usdface.scan.synthetic import rotation_matrix
 from usdface.scan.warp import ThinPlateSpline
 
@@ -56,7 +56,7 @@ def test_register_stylized_face_from_20_landmarks(faces):
     s2, R2, t2 = similarity_fit(g.points, truth)  # the best similarity, knowing every correspondence
     e_sim = np.linalg.norm(apply_similarity(g.points, s2, R2, t2) - truth, axis=1).mean()
     plain = reg.register(truth, st.triangles(), slm)
-    cropped = reg.register(truth, st.triangles(), slm, border_weight=1.0, field_iterations=8)
+    cropped = reg.register(truth, st.triangles(), slm, RegistrationParameters(border_weight=1.0, field_iterations=8))
     e_rbf = np.linalg.norm(plain.rbf_points - truth, axis=1).mean()
     e_plain = np.linalg.norm(plain.points - truth, axis=1).mean()
     e_crop = np.linalg.norm(cropped.points - truth, axis=1).mean()

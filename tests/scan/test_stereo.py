@@ -4,7 +4,8 @@ import pytest
 
 from usdface.errors import InputError, OptionError
 from usdface.scan.calibration import calibration_from_dict
-from usdface.scan.stereo import bad_pixel_rate, check_rectified, compute_disparity, disparity_range
+from usdface.scan.graphcut import GraphCutParameters
+from usdface.scan.stereo import MatchingParameters, bad_pixel_rate, check_rectified, compute_disparity, disparity_range
 
 CROP = (slice(120, 300), slice(180, 460))  # 280 x 180, disparities 7-60 inside
 
@@ -33,9 +34,10 @@ def test_bad_pixel_rate_definition():
 def test_graphcut_beats_sgbm_on_middlebury_crop(moto):
     left, right, gt = moto
     L, R, G = left[CROP], right[CROP], gt[CROP]
-    sgbm = compute_disparity(L, R, method="sgbm", num_disparities=64, min_texture=0)
-    wls = compute_disparity(L, R, method="sgbm-wls", num_disparities=64, min_texture=0)
-    gc = compute_disparity(L, R, method="graphcut", num_disparities=64, max_cycles=1, min_texture=0)
+    sgbm = compute_disparity(L, R, MatchingParameters(method="sgbm", num_disparities=64, min_texture=0))
+    wls = compute_disparity(L, R, MatchingParameters(method="sgbm-wls", num_disparities=64, min_texture=0))
+    gc = compute_disparity(L, R, MatchingParameters(method="graphcut", num_disparities=64, min_texture=0,
+                                                    graphcut=GraphCutParameters(max_cycles=1)))
     b_sgbm = bad_pixel_rate(sgbm.disparity, G)["bad"]
     b_wls = bad_pixel_rate(wls.disparity, G)["bad"]
     b_gc = bad_pixel_rate(gc.disparity, G)["bad"]
@@ -113,9 +115,9 @@ def test_ground_truth_of_another_size_is_refused(shared_data, tmp_path, capsys):
 def test_vertical_pair_is_the_transposed_horizontal_one(moto):
     left, right, _ = moto
     L, R = left[CROP], right[CROP]
-    h = compute_disparity(L, R, method="sgbm", num_disparities=64)
+    h = compute_disparity(L, R, MatchingParameters(method="sgbm", num_disparities=64))
     v = compute_disparity(np.ascontiguousarray(L.transpose(1, 0, 2)), np.ascontiguousarray(R.transpose(1, 0, 2)),
-                          method="sgbm", num_disparities=64, vertical=True)
+                          MatchingParameters(method="sgbm", num_disparities=64, vertical=True))
     assert np.allclose(np.nan_to_num(v.disparity.T), np.nan_to_num(h.disparity))
 
 
@@ -135,9 +137,9 @@ def test_bad_pairs():
     with pytest.raises(InputError, match="differ in size"):
         compute_disparity(a, np.zeros((100, 121), np.uint8))
     with pytest.raises(OptionError, match="--method"):
-        compute_disparity(a, a, method="magic")
+        compute_disparity(a, a, MatchingParameters(method="magic"))
     with pytest.raises(OptionError, match="do not fit"):
-        compute_disparity(a, a, num_disparities=128)
+        compute_disparity(a, a, MatchingParameters(num_disparities=128))
 
 
 @pytest.fixture(scope="module")
@@ -154,8 +156,9 @@ def test_rendered_face_depth_error(face_pair, method, median_mm, p95_mm):
     for pair in face_pair:
         cal = calibration_from_dict(pair["calibration"])
         lo, n = disparity_range(cal, 500, 700)
-        r = compute_disparity(pair["first"], pair["second"], method=method, min_disparity=lo, num_disparities=n,
-                              vertical=cal.vertical, max_cycles=2)
+        r = compute_disparity(pair["first"], pair["second"],
+                              MatchingParameters(method=method, min_disparity=lo, num_disparities=n,
+                                                 vertical=cal.vertical, graphcut=GraphCutParameters(max_cycles=2)))
         z = cal.depth(np.where(r.valid, r.disparity, np.nan))
         face = np.isfinite(pair["depth"])
         ok = face & np.isfinite(z)

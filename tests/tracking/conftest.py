@@ -39,7 +39,7 @@ def tracked(clip, clip_files):
 
 
 @pytest.fixture
-def cli(monkeypatch):
+def cli():
     """`usdface ARGS...` in-process; returns the exit code."""
     import usdface.cli as cli_module
 

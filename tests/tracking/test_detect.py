@@ -1,7 +1,6 @@
 """Detection kernels: colour model, coverage centroids (compiled vs numpy reference), Hough."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest

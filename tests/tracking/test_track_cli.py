@@ -109,3 +109,39 @@ def test_sample_asset_clip_against_its_truth(cli, sample_assets, tmp_path):
     assert np.isfinite(err).mean() >= 0.99
     e = err[np.isfinite(err)]
     assert e.mean() <= 0.3 and np.percentile(e, 99) <= 1.0
+
+
+def test_track_and_lift_in_memory(cli, clip_files, sample_assets, tmp_path, monkeypatch):
+    """The Python API: tracks and the lifted capture authored in memory (no file written, in a
+    read-only working folder) hold what the command writes to files."""
+    from pxr import Sdf
+
+    from usdface import api
+    from usdface.options import LiftOptions, TrackOptions
+    from usdface.usd.capture_layer import read_capture_layer
+
+    mesh = sample_assets / "meshes" / "makehuman_hm08_face_cm.obj"
+    layout = sample_assets / "layouts" / "makehuman_hm08_face.layout.json"
+    video = sample_assets / "video" / "animface_dots.mp4"
+    seeds = sample_assets / "video" / "animface_dots.seeds.json"
+    tracks, lifted = tmp_path / "tracks.usdc", tmp_path / "lifted.usdc"
+    assert cli("track", video, "--seeds", seeds, "--radius", 4, 9, "-o", tracks, "-q") == 0
+    assert cli("lift", tracks, "--mesh", mesh, "--layout", layout, "-o", lifted, "-q") == 0
+    readonly = tmp_path / "readonly"
+    readonly.mkdir()
+    readonly.chmod(0o555)
+    monkeypatch.chdir(readonly)
+    try:
+        t = api.track(video, TrackOptions(seeds=str(seeds), radius=(4, 9)))
+        assert isinstance(t.layer, Sdf.Layer) and t.files == {}
+        in_memory, _ = read_track_layer(t.layer)
+        on_disk, _ = read_track_layer(tracks)
+        assert in_memory.names == on_disk.names
+        assert np.array_equal(in_memory.positions, on_disk.positions, equal_nan=True)
+        lift = api.lift(t.layer, mesh, LiftOptions(layout=str(layout)))
+        assert lift.summary["frames"] == in_memory.n_frames
+        assert np.allclose(read_capture_layer(lift.layer).positions, read_capture_layer(lifted).positions,
+                           atol=1e-6, equal_nan=True)
+        assert list(readonly.iterdir()) == []
+    finally:
+        readonly.chmod(0o755)

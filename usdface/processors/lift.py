@@ -7,58 +7,106 @@ layout (`usdface bind --layout`) and transfer it like any capture.
 """
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError, MarkerError, OptionError
-from ..usd.layers import USD_SUFFIXES, check_output_path, provenance
+from ..options import LiftOptions
+from ..registry import Result
+from ..usd.layers import check_output_path, describe, is_in_memory, provenance
 
-log = logging.getLogger("usdface")
+__all__ = ["lift"]
 
 
-def read_tracks(path, *, rate=None):
-    """2D tracks (Capture in pixels, z = 0) from a track layer (.usd*) or a 2D capture CSV."""
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"tracks {p}: no such file")
-    suffix = p.suffix.lower()
-    if suffix in USD_SUFFIXES:
-        from ..usd.capture_layer import read_capture_layer
+def lift(tracks, mesh, *, options: LiftOptions, output) -> Result:
+    """Lift 2D tracks to a 3D capture layer on the mesh.
 
-        try:
-            from ..usd.track_layer import read_track_layer
-        except ImportError:  # pragma: no cover - track layers not available in this build
-            read_track_layer = None
-        if read_track_layer is None:
-            capture = read_capture_layer(p)
-        else:
-            try:
-                capture, _ = read_track_layer(p)
-            except InputError:
-                capture = read_capture_layer(p)  # a capture layer of 2D data also holds tracks
-    elif suffix == ".csv":
-        from ..io.csv_format import read_csv
+    ``tracks``: a track layer, a capture layer of 2D data or a 2D CSV (pixels). ``mesh``: a mesh
+    layer or any mesh file `usdface run` accepts (OBJ, PLY, ...; ``options.mesh_units`` for files
+    without units, default cm). The markers' bound points come from ``options.binding`` or
+    ``options.layout``. The neutral tracks' fit to the bound points is judged like a 3D layout fit
+    (:func:`usdface.mesh.judgement.fit_residual_findings`, code ``fit-residual``): a marker more
+    than 25% of the face's image size off, or an rms beyond 15%, stops the lift unless
+    ``options.allow`` names the check.
+    """
+    from ..capture.lift import DEFAULT_MIN_COS, check_marker_sets, lift_displacements, surface_normals
+    from ..model.capture import Capture
+    from ..capture.plausibility import report
+    from ..usd.capture_layer import write_capture_layer
+    from ..usd.inputs import load_mesh
+    from ..usd.track_inputs import read_tracks
 
-        try:
-            capture = read_csv(p, rate=rate)
-        except OptionError as exc:
-            if "units" not in str(exc):
-                raise
-            capture = read_csv(p, units="cm", rate=rate)  # pixel tracks declare no length unit
-    else:
-        raise InputError(f"tracks {p}: expected a track layer ({', '.join(USD_SUFFIXES)}) or a 2D CSV")
-    dims = next((int(h["dims"]) for h in capture.history if "dims" in h), None)
-    z = capture.positions[..., 2]
-    if dims == 3 or (dims is None and np.nanmax(np.abs(z)) > 0):
-        raise InputError(f"tracks {p}: the tracks are 3D; `usdface lift` takes 2D image tracks "
-                         "(import 3D capture with `usdface import-capture`)")
-    return capture
+    o = options
+    out = check_output_path(output, inputs={"tracks": tracks, "--mesh": mesh, "--binding": o.binding,
+                                            "--layout": o.layout})
+    min_cos = DEFAULT_MIN_COS
+    capture_2d = read_tracks(tracks, rate=o.rate)
+    if not is_in_memory(mesh) and not Path(mesh).is_file():
+        raise InputError(f"--mesh {mesh}: no such file")
+    face, _ = load_mesh(mesh, units=o.mesh_units)
+    names, tri, bary, place_src = _bound_surface(face, o.binding, o.layout)
+    check_marker_sets(capture_2d.names, names, tracks=f"tracks {describe(tracks)}", layout=place_src)
+    order = [names.index(n) for n in capture_2d.names]  # layout rows in the tracks' order
+    tri, bary = np.asarray(tri)[order], np.asarray(bary)[order]
+    bound = np.einsum("mk,mkd->md", bary, face.points[tri])
+    n_frame = capture_2d.neutral_frame if o.neutral is None else int(o.neutral)
+    if not 0 <= n_frame < capture_2d.n_frames:
+        raise OptionError(f"--neutral {o.neutral}: outside 0..{capture_2d.n_frames - 1}")
+    uv = capture_2d.positions[..., :2]
+    ok = np.isfinite(uv[n_frame]).all(axis=1)
+    if not ok.all():
+        raise MarkerError(f"tracks {describe(tracks)}: marker(s) {', '.join(np.array(capture_2d.names)[~ok])} invalid "
+                          f"at the neutral frame {n_frame}; choose another neutral frame (--neutral)")
+    cam, findings = _fit_camera(uv[n_frame], bound, capture_2d.names,
+                                what=f"tracks {describe(tracks)} on {place_src}")
+    checked = report(findings, allow=o.allow)
+    normals = surface_normals(face.points, face.triangles(), tri, bary)
+    disp = lift_displacements(uv, n_frame, cam, normals=normals, depth=o.depth, min_cos=min_cos)
+    step = {"step": "lift", "dims": 3, "tracks": _name(tracks), "depth": o.depth, "minCos": min_cos,
+            "cameraScale": cam.scale, "cameraRows": cam.rows.tolist(), "cameraOffset": cam.offset.tolist(),
+            "residualRms": cam.residual_rms, "residualMax": cam.residual_max, "neutralFrame": n_frame,
+            "trackHistory": list(capture_2d.history)}
+    capture = Capture(names=capture_2d.names, positions=bound[None] + disp, rate=capture_2d.rate, units=face.units,
+                      start_frame=capture_2d.start_frame, neutral_frame=n_frame, source=describe(tracks),
+                      history=(step,))
+    grazing = int((np.abs(normals @ cam.view_direction) < min_cos).sum())
+    recorded = {"depth": o.depth, "neutral": n_frame, "min_cos": min_cos}
+    if o.allow:
+        from ..capture.plausibility import parse_allow
+
+        recorded["allow"] = sorted(parse_allow(o.allow))
+    prov = provenance("lift", options=recorded,
+                      inputs={"tracks": tracks, "mesh": mesh, "binding": o.binding, "layout": o.layout})
+    write_capture_layer(out, capture, prov=prov)
+    moved = np.linalg.norm(disp, axis=2)
+    where = describe(out) if is_in_memory(out) else str(out)
+    summary = {
+        "output": where, "frames": capture_2d.n_frames, "markers": capture_2d.n_markers, "rate": capture_2d.rate,
+        "units": face.units, "depth": o.depth, "neutralFrame": n_frame,
+        "cameraScale": cam.scale, "viewDirection": cam.view_direction.tolist(),
+        "residualRms": cam.residual_rms, "residualMax": cam.residual_max,
+        "grazingMarkers": grazing, "invalidSamples": int((~np.isfinite(uv).all(axis=2)).sum()),
+        "maxDisplacement": float(np.nanmax(moved)) if np.isfinite(moved).any() else 0.0,
+        "plausibility": checked,
+    }
+    text = [
+        f"wrote {where}: {capture_2d.n_markers} markers x {capture_2d.n_frames} frames lifted to {face.units} on the "
+        f"mesh (depth: {o.depth})",
+        f"  camera: {cam.scale:.4g} px per {face.units}, view direction "
+        f"({', '.join(f'{v:.3f}' for v in cam.view_direction)}), neutral fit rms {cam.residual_rms:.3g} px "
+        f"(max {cam.residual_max:.3g} px)",
+    ] + ([f"  {grazing} markers seen at a grazing angle: their depth step is bounded"] if grazing else [])
+    return Result(layers={"output": out}, summary=summary, text=text)
+
+
+def _name(source) -> str:
+    """A file's name, or an in-memory layer as described in messages."""
+    return describe(source) if is_in_memory(source) else Path(source).name
 
 
 def _bound_surface(mesh, binding, layout):
-    """(names, triangle_vertices, barycentrics) of the markers' bound points."""
+    """(names, triangle_vertices, barycentrics, source) of the markers' bound points."""
     if (binding is None) == (layout is None):
         raise OptionError("lift: give exactly one of --binding BINDING.usda or --layout LAYOUT.json")
     if binding is not None:
@@ -73,87 +121,6 @@ def _bound_surface(mesh, binding, layout):
     lay = read_layout(layout)
     sp = project_to_surface(mesh, lay.positions(mesh))
     return list(lay.names), sp.triangle_vertices, sp.barycentrics, str(layout)
-
-
-def lift(tracks_path, mesh_path, output, *, binding=None, layout=None, depth="zero", neutral=None,
-         rate=None, min_cos=None, mesh_units=None, allow=()) -> dict:
-    """Lift 2D tracks to a 3D capture layer on the mesh; returns the summary.
-
-    ``mesh_path``: a mesh layer or any mesh file `usdface run` accepts (OBJ, PLY, ...; ``mesh_units``
-    for files without units, default cm). The neutral tracks' fit to the markers' bound points is
-    judged like a 3D layout fit (:func:`usdface.mesh.judgement.fit_residual_findings`, code
-    ``fit-residual``): a marker more than 25% of the face's image size off, or an rms beyond 15%,
-    stops the lift unless ``allow`` names the check.
-    """
-    from ..capture.lift import DEFAULT_MIN_COS, check_marker_sets, lift_displacements, surface_normals
-    from ..model.capture import Capture
-    from ..capture.plausibility import report
-    from ..usd.capture_layer import write_capture_layer
-    from .import_mesh import load_mesh
-
-    out = check_output_path(output, inputs={"tracks": tracks_path, "--mesh": mesh_path, "--binding": binding,
-                                            "--layout": layout})
-    if depth not in ("tangent", "zero"):
-        raise OptionError(f"--depth: expected tangent or zero; got {depth!r}")
-    min_cos = DEFAULT_MIN_COS if min_cos is None else float(min_cos)
-    tracks = read_tracks(tracks_path, rate=rate)
-    from ..usd.layers import is_in_memory
-
-    if not is_in_memory(mesh_path) and not Path(mesh_path).is_file():
-        raise InputError(f"--mesh {mesh_path}: no such file")
-    mesh, _ = load_mesh(mesh_path, units=mesh_units)
-    names, tri, bary, place_src = _bound_surface(mesh, binding, layout)
-    check_marker_sets(tracks.names, names, tracks=f"tracks {tracks_path}", layout=place_src)
-    order = [names.index(n) for n in tracks.names]  # layout rows in the tracks' order
-    tri, bary = np.asarray(tri)[order], np.asarray(bary)[order]
-    bound = np.einsum("mk,mkd->md", bary, mesh.points[tri])
-    n_frame = tracks.neutral_frame if neutral is None else int(neutral)
-    if not 0 <= n_frame < tracks.n_frames:
-        raise OptionError(f"--neutral {neutral}: outside 0..{tracks.n_frames - 1}")
-    uv = tracks.positions[..., :2]
-    ok = np.isfinite(uv[n_frame]).all(axis=1)
-    if not ok.all():
-        raise MarkerError(f"tracks {tracks_path}: marker(s) {', '.join(np.array(tracks.names)[~ok])} invalid at the "
-                          f"neutral frame {n_frame}; choose another neutral frame (--neutral)")
-    cam, findings = _fit_camera(uv[n_frame], bound, tracks.names, what=f"tracks {tracks_path} on {place_src}")
-    checked = report(findings, allow=allow)
-    normals = surface_normals(mesh.points, mesh.triangles(), tri, bary)
-    disp = lift_displacements(uv, n_frame, cam, normals=normals, depth=depth, min_cos=min_cos)
-    positions = bound[None] + disp
-    step = {"step": "lift", "dims": 3, "tracks": Path(tracks_path).name, "depth": depth, "minCos": min_cos,
-            "cameraScale": cam.scale, "cameraRows": cam.rows.tolist(), "cameraOffset": cam.offset.tolist(),
-            "residualRms": cam.residual_rms, "residualMax": cam.residual_max, "neutralFrame": n_frame,
-            "trackHistory": list(tracks.history)}
-    capture = Capture(names=tracks.names, positions=positions, rate=tracks.rate, units=mesh.units,
-                      start_frame=tracks.start_frame, neutral_frame=n_frame, source=str(tracks_path),
-                      history=(step,))
-    grazing = int((np.abs(normals @ cam.view_direction) < min_cos).sum())
-    lift_options = {"depth": depth, "neutral": n_frame, "min_cos": min_cos}
-    if allow:
-        from ..capture.plausibility import parse_allow
-
-        lift_options["allow"] = sorted(parse_allow(allow))
-    prov = provenance("lift", options=lift_options,
-                      inputs={"tracks": tracks_path, "mesh": mesh_path, "binding": binding, "layout": layout})
-    write_capture_layer(out, capture, prov=prov)
-    moved = np.linalg.norm(disp, axis=2)
-    summary = {
-        "output": str(out), "frames": tracks.n_frames, "markers": tracks.n_markers, "rate": tracks.rate,
-        "units": mesh.units, "depth": depth, "neutralFrame": n_frame,
-        "cameraScale": cam.scale, "viewDirection": cam.view_direction.tolist(),
-        "residualRms": cam.residual_rms, "residualMax": cam.residual_max,
-        "grazingMarkers": grazing, "invalidSamples": int((~np.isfinite(uv).all(axis=2)).sum()),
-        "maxDisplacement": float(np.nanmax(moved)) if np.isfinite(moved).any() else 0.0,
-        "plausibility": checked,
-    }
-    summary["_text"] = [
-        f"wrote {out}: {tracks.n_markers} markers x {tracks.n_frames} frames lifted to {mesh.units} on the mesh "
-        f"(depth: {depth})",
-        f"  camera: {cam.scale:.4g} px per {mesh.units}, view direction "
-        f"({', '.join(f'{v:.3f}' for v in cam.view_direction)}), neutral fit rms {cam.residual_rms:.3g} px "
-        f"(max {cam.residual_max:.3g} px)",
-    ] + ([f"  {grazing} markers seen at a grazing angle: their depth step is bounded"] if grazing else [])
-    return summary
 
 
 def _fit_camera(image_points, model_points, names, *, what: str):
@@ -182,36 +149,3 @@ def _fit_camera(image_points, model_points, names, *, what: str):
         kept[worst] = False
     findings = fit_residual_findings(list(names), res, res <= limit, face_px, units="px", what=what)
     return cam, findings
-
-
-def register_cli(sub) -> None:
-    """Add `usdface lift` to the CLI."""
-    from ..cliargs import add_common_options
-
-    p = sub.add_parser("lift", help="lift 2D marker tracks (video) to a 3D capture layer on the mesh",
-                       description="Map 2D image tracks of face markers to 3D motion on a character mesh: fit a "
-                                   "weak-perspective camera to the neutral frame against the markers' bound "
-                                   "points, map image displacements into the image plane in mesh units, and take "
-                                   "the depth change from the face surface (tangent plane) or zero. Writes a "
-                                   "capture layer (mesh units, same marker names) for bind/transfer/skel.")
-    p.add_argument("tracks", help="2D track layer (.usd*) or 2D capture CSV (pixels)")
-    p.add_argument("--mesh", required=True, help="mesh layer, or a mesh file (OBJ, PLY, STL, OFF... as `run` takes)")
-    p.add_argument("--mesh-units", choices=["mm", "cm", "dm", "m", "in", "ft"],
-                   help="units of a mesh file that does not say (OBJ: default cm)")
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--binding", help="binding layer giving the markers' bound points")
-    src.add_argument("--layout", help="marker layout JSON (usdface-layout/1) on the mesh")
-    p.add_argument("--depth", choices=["zero", "tangent"], default="zero",
-                   help="depth change: none (default), or slide on the tangent plane at the bound point")
-    p.add_argument("--neutral", type=int, metavar="FRAME", help="neutral frame index (default: the tracks')")
-    p.add_argument("--rate", type=float, metavar="HZ", help="track rate when a CSV does not declare it")
-    p.add_argument("-o", "--output", required=True, help="capture layer to write (.usdc)")
-    from ..cliargs import add_options, options_from_args
-    from ..options import PlausibilityOptions
-
-    add_options(p, PlausibilityOptions)
-    add_common_options(p)
-    p.set_defaults(func=lambda args: lift(args.tracks, args.mesh, args.output, binding=args.binding,
-                                          layout=args.layout, depth=args.depth, neutral=args.neutral,
-                                          rate=args.rate, mesh_units=args.mesh_units,
-                                          allow=options_from_args(PlausibilityOptions, args).allow))

@@ -81,8 +81,7 @@ def shapes_transfer(target, landmarks, *, options: ShapesTransferOptions, output
                          f"{generic_landmarks}; "
                          f"at least {MIN_LANDMARKS} are needed (20 recommended)")
     reg = GenericRegistration(rig.mesh, g_regions, glay.positions(rig.mesh, have)).register(
-        tmesh.points, tmesh.triangles(), tl, iterations=o.iterations, border_weight=1.0 if o.border else 0.0,
-        field_iterations=o.field)
+        tmesh.points, tmesh.triangles(), tl, o.registration())
     moved = transfer_rig(rig, g_regions, reg.points, tmesh, t_regions, method=o.method)
     prov = provenance("shapes transfer", options={"method": o.method, "border": o.border, "field": o.field,
                                                   "iterations": o.iterations, "landmarks": have},

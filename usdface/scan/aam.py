@@ -38,8 +38,8 @@ import numpy as np
 from ..errors import ComputeError, FormatError, InputError, OptionError
 from ..io.npz import load_npz
 
-__all__ = ["AAM_FORMAT", "ActiveAppearanceModel", "AAMFit", "train_aam", "load_aam", "procrustes_align",
-           "similarity_transform_2d", "augment_sample"]
+__all__ = ["AAM_FORMAT", "ActiveAppearanceModel", "AAMFit", "AAMTrainingParameters", "train_aam", "load_aam",
+           "procrustes_align", "similarity_transform_2d", "augment_sample"]
 
 AAM_FORMAT = "usdface-aam/1"
 
@@ -338,9 +338,52 @@ def _gradient_on_template(values, pix, size):
     return np.stack([gx[ij[:, 1], ij[:, 0]], gy[ij[:, 1], ij[:, 0]]], axis=1)
 
 
-def train_aam(images, shapes, *, names, model_size: float = 60.0, shape_variance: float = 0.97,
-              appearance_variance: float = 0.95, max_shape_modes: int = 12, max_appearance_modes: int = 40,
-              sigmas=(2.0, 0.0), boxes=None, detector=None, progress=None) -> ActiveAppearanceModel:
+@dataclass(frozen=True)
+class AAMTrainingParameters:
+    """Model settings of :func:`train_aam`.
+
+    Attributes
+    ----------
+    model_size : float
+        Template size: the mean shape's RMS radius in template pixels is ``model_size / 2``.
+    shape_variance, appearance_variance : float
+        Share of the training variance the PCA modes keep.
+    max_shape_modes, max_appearance_modes : int
+    sigmas : tuple of float
+        Template blur of each fitting level (template pixels; 0 = sharp), coarse to fine.
+    """
+
+    model_size: float = 60.0
+    shape_variance: float = 0.97
+    appearance_variance: float = 0.95
+    max_shape_modes: int = 12
+    max_appearance_modes: int = 40
+    sigmas: tuple = (2.0, 0.0)
+
+
+def _box_shape(images, X, boxes, detector) -> np.ndarray:
+    """Where the landmarks sit in a face box: the mean of each image's landmarks in its box's
+    unit square (box from ``boxes``, else ``detector(image)``, else the landmarks' bounding box
+    enlarged by 20%)."""
+    unit = []
+    for i, img in enumerate(images):
+        box = None
+        if boxes is not None:
+            box = boxes[i]
+        elif detector is not None:
+            box = detector(img)
+        if box is None:
+            lo, hi = X[i].min(axis=0), X[i].max(axis=0)
+            size = (hi - lo).max() * 1.2
+            ctr = (lo + hi) / 2
+            box = (ctr[0] - size / 2, ctr[1] - size / 2, size, size)
+        x, y, bw, bh = (float(v) for v in box)
+        unit.append((X[i] - [x, y]) / [bw, bh])
+    return np.mean(unit, axis=0)
+
+
+def train_aam(images, shapes, *, names, params: AAMTrainingParameters = AAMTrainingParameters(), boxes=None,
+              detector=None, progress=None) -> ActiveAppearanceModel:
     """Train an active appearance model from annotated images.
 
     Parameters
@@ -350,13 +393,8 @@ def train_aam(images, shapes, *, names, model_size: float = 60.0, shape_variance
         Landmarks of each image (pixels, OpenCV convention).
     names : sequence of P str
         Landmark names (stored with the model).
-    model_size : float
-        Template size: the mean shape's RMS radius in template pixels is ``model_size / 2``.
-    shape_variance, appearance_variance : float
-        Share of the training variance the PCA modes keep.
-    max_shape_modes, max_appearance_modes : int
-    sigmas : sequence of float
-        Template blur of each fitting level (template pixels; 0 = sharp), coarse to fine.
+    params : AAMTrainingParameters
+        Template size, PCA variance shares and mode counts, fitting levels.
     boxes : sequence of (x, y, w, h) or None, optional
         Face boxes of the training images, to learn where the landmarks sit in a detection;
         default: run ``detector`` (a callable image -> box or None), else the landmarks' own
@@ -383,7 +421,7 @@ def train_aam(images, shapes, *, names, model_size: float = 60.0, shape_variance
         raise InputError("AAM training needs at least 3 landmarks")
     t0 = time.perf_counter()
     aligned, mean = procrustes_align(X)
-    radius = model_size / 2.0
+    radius = params.model_size / 2.0
     s0 = mean * radius
     margin = 3.0
     s0 = s0 - s0.min(axis=0) + margin
@@ -391,13 +429,12 @@ def train_aam(images, shapes, *, names, model_size: float = 60.0, shape_variance
     h = int(np.ceil(s0[:, 1].max() + margin)) + 1
     # shape modes of the aligned shapes, in template units
     dev = (aligned * radius).reshape(len(X), -1) - (mean * radius).ravel()[None, :]
-    modes, _ = _pca(dev, shape_variance, max_shape_modes)
+    modes, _ = _pca(dev, params.shape_variance, params.max_shape_modes)
     sim = np.stack([s0.ravel(), np.stack([-s0[:, 1], s0[:, 0]], 1).ravel(),
                     np.tile([1.0, 0.0], len(s0)), np.tile([0.0, 1.0], len(s0))], axis=1)
     Q, _ = np.linalg.qr(np.hstack([sim, modes]))
     Q = Q[:, : 4 + modes.shape[1]]
     # template pixels
-    tri = Delaunay(s0).simplices.astype(np.int64)
     xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
     grid = np.stack([xs.ravel(), ys.ravel()], axis=1)
     dl = Delaunay(s0)
@@ -410,30 +447,15 @@ def train_aam(images, shapes, *, names, model_size: float = 60.0, shape_variance
     b = np.einsum("kij,kj->ki", T[:, :2], pix - T[:, 2])
     pix_bary = np.column_stack([b, 1 - b.sum(axis=1)])
     arrays = {"s0": s0, "Q": Q, "tri": dl.simplices.astype(np.int64), "size": np.array([w, h]), "pix": pix,
-              "pix_tri": pix_tri, "pix_bary": pix_bary, "sigmas": np.asarray(sigmas, dtype=np.float64)}
+              "pix_tri": pix_tri, "pix_bary": pix_bary, "sigmas": np.asarray(params.sigmas, dtype=np.float64)}
     # local-mode spreads from the training shapes placed on the template by their similarity
-    params = []
+    placed = []
     for i in range(len(X)):
         A, t = similarity_transform_2d(X[i], s0)
-        params.append(Q.T @ ((X[i] @ A.T + t) - s0).ravel())
-    params = np.asarray(params)
-    arrays["sd"] = np.maximum(params[:, 4:].std(axis=0), 1e-6) if Q.shape[1] > 4 else np.zeros(0)
-    # face-box placement
-    unit = []
-    for i, img in enumerate(images):
-        box = None
-        if boxes is not None:
-            box = boxes[i]
-        elif detector is not None:
-            box = detector(img)
-        if box is None:
-            lo, hi = X[i].min(axis=0), X[i].max(axis=0)
-            size = (hi - lo).max() * 1.2
-            ctr = (lo + hi) / 2
-            box = (ctr[0] - size / 2, ctr[1] - size / 2, size, size)
-        x, y, bw, bh = (float(v) for v in box)
-        unit.append((X[i] - [x, y]) / [bw, bh])
-    arrays["box_shape"] = np.mean(unit, axis=0)
+        placed.append(Q.T @ ((X[i] @ A.T + t) - s0).ravel())
+    placed = np.asarray(placed)
+    arrays["sd"] = np.maximum(placed[:, 4:].std(axis=0), 1e-6) if Q.shape[1] > 4 else np.zeros(0)
+    arrays["box_shape"] = _box_shape(images, X, boxes, detector)  # face-box placement
     # appearance, per level
     grays = [cv2.cvtColor(np.asarray(im), cv2.COLOR_BGR2GRAY).astype(np.float32) if np.asarray(im).ndim == 3
              else np.asarray(im).astype(np.float32) for im in images]
@@ -441,11 +463,11 @@ def train_aam(images, shapes, *, names, model_size: float = 60.0, shape_variance
     model.s0, model.tri, model.pix, model.pix_tri, model.pix_bary = s0, arrays["tri"], pix, pix_tri, pix_bary
     model.size = (w, h)
     raw = np.stack([model._sample(g, X[i]) for i, g in enumerate(grays)])
-    for li, sigma in enumerate(sigmas):
+    for li, sigma in enumerate(params.sigmas):
         tex = np.stack([_normalise(_template_blur(r, pix, (w, h), sigma) if sigma > 0 else r) for r in raw])
         A0 = _normalise(tex.mean(axis=0))
         res = tex - A0[None, :]
-        A, _ = _pca(res, appearance_variance, max_appearance_modes)
+        A, _ = _pca(res, params.appearance_variance, params.max_appearance_modes)
         grad = _gradient_on_template(A0, pix, (w, h))  # (K, 2)
         J = np.einsum("kj,kjdn->kdn", pix_bary, Q.reshape(len(s0), 2, -1)[arrays["tri"][pix_tri]])  # (K, 2, n)
         SD = np.einsum("kd,kdn->kn", grad, J)
@@ -453,7 +475,7 @@ def train_aam(images, shapes, *, names, model_size: float = 60.0, shape_variance
         H = SD.T @ SD
         arrays.update({f"L{li}_A0": A0, f"L{li}_A": A, f"L{li}_SD": SD, f"L{li}_Hinv": np.linalg.pinv(H)})
     meta = {"training_images": len(X), "points": len(names), "shape_modes": int(Q.shape[1] - 4),
-            "appearance_modes": [int(arrays[f"L{i}_A"].shape[1]) for i in range(len(sigmas))],
+            "appearance_modes": [int(arrays[f"L{i}_A"].shape[1]) for i in range(len(params.sigmas))],
             "template_pixels": int(len(pix)), "seconds": round(time.perf_counter() - t0, 3)}
     return ActiveAppearanceModel(arrays, names, meta)
 
@@ -499,4 +521,4 @@ def augment_sample(image, points, n: int, *, seed: int = 0, rotation: float = 8.
         im += rng.normal(0, 3.0, im.shape)
         out_i.append(np.clip(im, 0, 255).astype(np.uint8))
         out_p.append(pts @ M[:, :2].T + M[:, 2])
-    return out_i, np.asarray(out_p)
+    return out_i, np.asarray(out_p).reshape(len(out_p), *pts.shape)  # (0, P, 2) for no copies

@@ -41,7 +41,7 @@ from ..inputfiles import read_json
 from ..units import METERS_PER_UNIT
 
 __all__ = ["StereoCalibration", "RectifiedPair", "read_calibration", "calibration_from_dict", "rectify_pair",
-           "rectify_image_points"]
+           "rectify_image_points", "scan_camera_dict"]
 
 _RECTIFIED_KEYS = ("f", "cx", "cy", "baseline", "doffs", "vertical", "units")
 _FULL_KEYS = ("K1", "D1", "K2", "D2", "R", "T", "units")
@@ -271,3 +271,19 @@ def rectify_image_points(points, K1, D1, R1, P1) -> np.ndarray:
     out = cv2.undistortPoints(pts, np.asarray(K1, np.float64), np.asarray(D1, np.float64),
                               R=np.asarray(R1, np.float64), P=np.asarray(P1, np.float64))
     return out.reshape(-1, 2)
+
+
+def scan_camera_dict(rcal: StereoCalibration, size, *, rect: RectifiedPair | None = None,
+                     original: StereoCalibration | None = None) -> dict:
+    """The camera a stereo scan records (``scanCamera`` in its provenance), so image landmarks can
+    later be lifted onto the scan (:func:`usdface.scan.image_landmarks.lift_image_landmarks`): the
+    first rectified camera (``rcal``, images of ``size`` = (width, height) pixels) and, when the
+    pair was rectified here (``rect`` from the ``original`` calibration), the first camera's
+    rectification K1, D1, R1, P1."""
+    cam = {"f": rcal.f, "cx": rcal.cx, "cy": rcal.cy, "width": int(size[0]), "height": int(size[1]),
+           "baseline": rcal.baseline, "doffs": rcal.doffs, "vertical": bool(rcal.vertical), "units": rcal.units,
+           "frame": "scan = (x, -y, -z) of the first rectified camera (x right, y down, z forward)"}
+    if rect is not None and rect.R1 is not None:
+        cam["rectification"] = {"K1": original.K1.tolist(), "D1": original.D1.ravel().tolist(),
+                                "R1": rect.R1.tolist(), "P1": rect.P1.tolist()}
+    return cam

@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import OptionError, UsdFaceError
 
 __all__ = ["census_transform", "matching_cost", "contrast_weights", "alpha_expansion", "labelling_energy", "subpixel_refine",
-           "uniqueness_occlusions", "GraphCutResult", "graphcut_disparity"]
+           "uniqueness_occlusions", "GraphCutParameters", "GraphCutResult", "graphcut_disparity"]
 
 
 def _maxflow():
@@ -428,11 +428,40 @@ class GraphCutResult:
     info: dict
 
 
+@dataclass(frozen=True)
+class GraphCutParameters:
+    """Settings of :func:`graphcut_disparity` besides the disparity range.
+
+    Attributes
+    ----------
+    smoothness : float
+        ``lambda`` of the smoothness term, in cost units per label step (:func:`alpha_expansion`).
+    truncation : float
+        ``K``: label steps after which a jump costs the same (1: Potts).
+    max_cycles : int
+        Expansion cycles over all labels.
+    candidates : int
+        Labels per pixel taking part in a move (:func:`alpha_expansion`; 0: every pixel).
+    window, census_radius : int
+        Cost aggregation window and census radius (pixels; :func:`matching_cost`).
+    contrast_threshold : float
+        Grey-level difference below which neighbours get the high weight (:func:`contrast_weights`).
+    time_limit : float, optional
+        Seconds after which no new expansion move starts.
+    """
+
+    smoothness: float = 0.08
+    truncation: float = 2.0
+    max_cycles: int = 3
+    candidates: int = 6
+    window: int = 5
+    census_radius: int = 3
+    contrast_threshold: float = 8.0
+    time_limit: float | None = None
+
+
 def graphcut_disparity(left, right, *, min_disparity: int = 0, num_disparities: int = 64,
-                       smoothness: float = 0.08, truncation: float = 2.0, max_cycles: int = 3,
-                       candidates: int = 6, window: int = 5, census_radius: int = 3,
-                       contrast_threshold: float = 8.0, time_limit: float | None = None,
-                       progress=None) -> GraphCutResult:
+                       params: GraphCutParameters = GraphCutParameters(), progress=None) -> GraphCutResult:
     """Disparity of a rectified pair by graph cuts (KZ1-style energy, alpha-expansion).
 
     Parameters
@@ -441,12 +470,10 @@ def graphcut_disparity(left, right, *, min_disparity: int = 0, num_disparities: 
         Rectified images (column x in ``left`` matches ``x - d`` in ``right``).
     min_disparity, num_disparities : int
         Searched disparity range (pixels).
-    smoothness, truncation, max_cycles, candidates, time_limit, progress :
+    params : GraphCutParameters
+        Energy, move and cost settings.
+    progress : callable(cycle, label, energy), optional
         See :func:`alpha_expansion`.
-    window, census_radius :
-        See :func:`matching_cost`.
-    contrast_threshold : float
-        See :func:`contrast_weights`.
 
     Returns
     -------
@@ -454,12 +481,12 @@ def graphcut_disparity(left, right, *, min_disparity: int = 0, num_disparities: 
     """
     t0 = time.perf_counter()
     cost = matching_cost(left, right, min_disparity=min_disparity, num_disparities=num_disparities,
-                         census_radius=census_radius, window=window)
+                         census_radius=params.census_radius, window=params.window)
     t_cost = time.perf_counter() - t0
-    wh, wv = contrast_weights(left, threshold=contrast_threshold)
-    labels, info = alpha_expansion(cost, wh=wh, wv=wv, smoothness=smoothness, truncation=truncation,
-                                   max_cycles=max_cycles, candidates=candidates, time_limit=time_limit,
-                                   progress=progress)
+    wh, wv = contrast_weights(left, threshold=params.contrast_threshold)
+    labels, info = alpha_expansion(cost, wh=wh, wv=wv, smoothness=params.smoothness, truncation=params.truncation,
+                                   max_cycles=params.max_cycles, candidates=params.candidates,
+                                   time_limit=params.time_limit, progress=progress)
     disp = subpixel_refine(labels, cost) + np.float32(min_disparity)
     occ = uniqueness_occlusions(disp)
     info = dict(info, cost_seconds=t_cost, total_seconds=time.perf_counter() - t0)

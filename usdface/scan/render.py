@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import OptionError
 
-__all__ = ["PinholeCamera", "RenderResult", "render_view", "skin_albedo", "value_noise", "cap_holes",
+__all__ = ["PinholeCamera", "RenderResult", "ViewStyle", "render_view", "skin_albedo", "value_noise", "cap_holes",
            "stereo_cameras", "photo_uv", "FaceTexture"]
 
 
@@ -255,10 +255,35 @@ class FaceTexture:
     tone: tuple = (0.55, 0.66, 0.86)
 
 
+@dataclass(frozen=True)
+class ViewStyle:
+    """Light and background of a :func:`render_view`.
+
+    Attributes
+    ----------
+    light_dir : 3-vector
+        Direction the light travels, in *camera* coordinates (default: from upper left behind the
+        camera toward the scene).
+    ambient, specular : float
+        Ambient fraction and Blinn-Phong specular strength.
+    background : (b, g, r)
+        Background colour (0..255).
+    background_noise : float
+        Standard deviation of grey-level noise added to the background (0 = flat).
+    seed : int
+        Seed of the background noise.
+    """
+
+    light_dir: tuple = (0.3, 0.4, 1.0)
+    ambient: float = 0.35
+    specular: float = 0.08
+    background: tuple = (40, 40, 46)
+    background_noise: float = 0.0
+    seed: int = 0
+
+
 def render_view(points, triangles, camera: PinholeCamera, *, texture: FaceTexture | None = None,
-                texture_points=None, vertex_colors=None, light_dir=(0.3, 0.4, 1.0), ambient: float = 0.35,
-                specular: float = 0.08, background=(40, 40, 46), background_noise: float = 0.0,
-                seed: int = 0) -> RenderResult:
+                texture_points=None, vertex_colors=None, style: ViewStyle = ViewStyle()) -> RenderResult:
     """Render a textured, lit triangle mesh with an exact depth map.
 
     Parameters
@@ -274,15 +299,8 @@ def render_view(points, triangles, camera: PinholeCamera, *, texture: FaceTextur
         keep the texture stuck to the skin when the face moves.
     vertex_colors : ndarray, shape (N, 3), optional
         BGR in [0, 1], instead of a texture.
-    light_dir : 3-vector
-        Direction the light travels, in *camera* coordinates (default: from upper left behind the
-        camera toward the scene).
-    ambient, specular : float
-        Ambient fraction and Blinn-Phong specular strength.
-    background : (b, g, r)
-        Background colour (0..255).
-    background_noise : float
-        Standard deviation of grey-level noise added to the background (0 = flat).
+    style : ViewStyle
+        Light and background.
 
     Returns
     -------
@@ -339,18 +357,18 @@ def render_view(points, triangles, camera: PinholeCamera, *, texture: FaceTextur
                 albedo = albedo * (1.0 + tex.skin_strength * (detail - 1.0))
         if albedo is None:
             albedo = np.full((t.size, 3), 0.7)
-    L = -np.asarray(light_dir, dtype=np.float64)
+    L = -np.asarray(style.light_dir, dtype=np.float64)
     L /= np.linalg.norm(L)
     lam = np.clip(n @ L, 0.0, None)
     half = L[None, :] - view
     half /= np.maximum(np.linalg.norm(half, axis=1, keepdims=True), 1e-12)
-    spec = specular * np.clip(np.einsum("ij,ij->i", n, half), 0, None) ** 24
-    col = albedo * (ambient + (1.0 - ambient) * lam)[:, None] + spec[:, None]
+    spec = style.specular * np.clip(np.einsum("ij,ij->i", n, half), 0, None) ** 24
+    col = albedo * (style.ambient + (1.0 - style.ambient) * lam)[:, None] + spec[:, None]
     img = np.empty((h, w, 3), dtype=np.float64)
-    img[:] = np.asarray(background, dtype=np.float64)[None, None, :] / 255.0
-    if background_noise > 0:
-        rng = np.random.default_rng(seed)
-        img += rng.normal(0, background_noise / 255.0, size=(h, w, 1))
+    img[:] = np.asarray(style.background, dtype=np.float64)[None, None, :] / 255.0
+    if style.background_noise > 0:
+        rng = np.random.default_rng(style.seed)
+        img += rng.normal(0, style.background_noise / 255.0, size=(h, w, 1))
     img[cov] = col
     out = np.clip(np.round(img * 255.0), 0, 255).astype(np.uint8)
     return RenderResult(image=out, depth=depth, triangle=tri_img, bary=bary)

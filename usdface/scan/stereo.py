@@ -27,16 +27,56 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..errors import InputError, OptionError
-
-__all__ = ["METHODS", "DisparityResult", "compute_disparity", "bad_pixel_rate", "disparity_range",
-           "check_rectified", "check_pair", "fill_background"]
-
+from .graphcut import GraphCutParameters
+from .methods import DEFAULT_NUM_DISPARITIES
 from .methods import STEREO_METHODS as METHODS  # named once
+
+__all__ = ["METHODS", "DEFAULT_NUM_DISPARITIES", "MatchingParameters", "DisparityResult", "compute_disparity",
+           "bad_pixel_rate", "disparity_range", "check_rectified", "check_pair", "fill_background"]
+
+
+@dataclass(frozen=True)
+class MatchingParameters:
+    """How :func:`compute_disparity` matches a pair.
+
+    Attributes
+    ----------
+    method : str
+        ``"sgbm"`` (default), ``"sgbm-wls"`` (SGBM + WLS filter) or ``"graphcut"`` (:data:`METHODS`).
+    min_disparity, num_disparities : int
+        Searched range ``min_disparity .. min_disparity + num_disparities - 1`` (pixels). SGBM
+        rounds ``num_disparities`` up to a multiple of 16.
+    vertical : bool
+        Second camera below the first (disparities along columns).
+    block_size : int
+        SGBM block size (odd).
+    sgbm_mode : str
+        ``"3way"`` (default, fastest), ``"sgbm"`` (5 directions), ``"hh"`` (8 directions, full
+        dynamic programming) or ``"hh4"``.
+    wls_lambda, wls_sigma : float
+        WLS filter smoothness and colour sensitivity.
+    min_texture : float
+        Pixels whose 7x7 grey-level standard deviation is below this are not valid: nothing can
+        be matched on a flat background (0 keeps them).
+    graphcut : GraphCutParameters
+        The graph cut's settings (``method="graphcut"``).
+    """
+
+    method: str = "sgbm"
+    min_disparity: int = 0
+    num_disparities: int = DEFAULT_NUM_DISPARITIES
+    vertical: bool = False
+    block_size: int = 5
+    sgbm_mode: str = "3way"
+    wls_lambda: float = 8000.0
+    wls_sigma: float = 1.5
+    min_texture: float = 1.0
+    graphcut: GraphCutParameters = GraphCutParameters()
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,19 +200,20 @@ def _lr_consistent(dl, dr, tol=1.0):
     return inside & np.isfinite(back) & (np.abs(back - dl) <= tol)
 
 
-def _match_horizontal(left, right, *, method, min_disparity, num_disparities, block_size, sgbm_mode,
-                      wls_lambda, wls_sigma, graphcut_options):
+def _match_horizontal(left, right, params: MatchingParameters, progress=None):
+    """(disparity, valid, info) of a horizontal pair; ``params`` holds the checked range."""
     import cv2
 
     info: dict = {}
     t0 = time.perf_counter()
+    method, min_disparity, num_disparities = params.method, params.min_disparity, params.num_disparities
     if method in ("sgbm", "sgbm-wls"):
         channels = 1 if left.ndim == 2 else left.shape[2]
         modes = {"sgbm": cv2.STEREO_SGBM_MODE_SGBM, "3way": cv2.STEREO_SGBM_MODE_SGBM_3WAY,
                  "hh": cv2.STEREO_SGBM_MODE_HH, "hh4": cv2.STEREO_SGBM_MODE_HH4}
-        if sgbm_mode not in modes:
-            raise OptionError(f"SGBM mode must be one of {', '.join(modes)}; got {sgbm_mode!r}")
-        left_m = _sgbm(min_disparity, num_disparities, block_size, channels, modes[sgbm_mode])
+        if params.sgbm_mode not in modes:
+            raise OptionError(f"SGBM mode must be one of {', '.join(modes)}; got {params.sgbm_mode!r}")
+        left_m = _sgbm(min_disparity, num_disparities, params.block_size, channels, modes[params.sgbm_mode])
         raw_l = left_m.compute(left, right)
         invalid_code = (min_disparity - 1) * 16
         if method == "sgbm":
@@ -183,10 +224,9 @@ def _match_horizontal(left, right, *, method, min_disparity, num_disparities, bl
         right_m = cv2.ximgproc.createRightMatcher(left_m)
         raw_r = right_m.compute(right, left)
         wls = cv2.ximgproc.createDisparityWLSFilter(left_m)
-        wls.setLambda(wls_lambda)
-        wls.setSigmaColor(wls_sigma)
+        wls.setLambda(params.wls_lambda)
+        wls.setSigmaColor(params.wls_sigma)
         filt = wls.filter(raw_l, left, disparity_map_right=raw_r)
-        conf = wls.getConfidenceMap()
         d = filt.astype(np.float32) / 16.0
         dl = raw_l.astype(np.float32) / 16.0
         dl[raw_l <= invalid_code] = np.nan
@@ -201,7 +241,7 @@ def _match_horizontal(left, right, *, method, min_disparity, num_disparities, bl
     from .graphcut import graphcut_disparity
 
     res = graphcut_disparity(left, right, min_disparity=min_disparity, num_disparities=num_disparities,
-                             **graphcut_options)
+                             params=params.graphcut, progress=progress)
     info.update({k: v for k, v in res.info.items() if k != "energy"}, energy=[float(e) for e in res.info["energy"]])
     valid = ~res.occluded
     # the first min_disparity columns have no counterpart in the right image
@@ -211,37 +251,17 @@ def _match_horizontal(left, right, *, method, min_disparity, num_disparities, bl
     return res.disparity, valid, info
 
 
-def compute_disparity(first, second, *, method: str = "sgbm", min_disparity: int = 0,
-                      num_disparities: int = 64, vertical: bool = False, block_size: int = 5,
-                      sgbm_mode: str = "3way", wls_lambda: float = 8000.0, wls_sigma: float = 1.5,
-                      max_cycles: int = 3, smoothness: float = 0.08, truncation: float = 2.0,
-                      candidates: int = 6, time_limit: float | None = None, min_texture: float = 1.0,
-                      progress=None) -> DisparityResult:
+def compute_disparity(first, second, params: MatchingParameters | None = None, *, progress=None) -> DisparityResult:
     """Disparity map of a rectified pair.
 
     Parameters
     ----------
     first, second : ndarray, shape (H, W) or (H, W, 3), uint8
-        Rectified images: left and right, or top and bottom when ``vertical``.
-    method : str
-        ``"sgbm"`` (default), ``"sgbm-wls"`` (SGBM + WLS filter) or ``"graphcut"``.
-    min_disparity, num_disparities : int
-        Searched range ``min_disparity .. min_disparity + num_disparities - 1`` (pixels). SGBM
-        rounds ``num_disparities`` up to a multiple of 16.
-    vertical : bool
-        Second camera below the first (disparities along columns).
-    block_size : int
-        SGBM block size (odd).
-    sgbm_mode : str
-        ``"3way"`` (default, fastest), ``"sgbm"`` (5 directions), ``"hh"`` (8 directions, full
-        dynamic programming) or ``"hh4"``.
-    wls_lambda, wls_sigma : float
-        WLS filter smoothness and colour sensitivity.
-    max_cycles, smoothness, truncation, candidates, time_limit, progress :
-        Graph cut options (see :func:`usdface.scan.graphcut.alpha_expansion`).
-    min_texture : float
-        Pixels whose 7x7 grey-level standard deviation is below this are not valid: nothing can
-        be matched on a flat background (0 keeps them).
+        Rectified images: left and right, or top and bottom when ``params.vertical``.
+    params : MatchingParameters, optional
+        Method, disparity range and the method's settings (default: SGBM over 0..63).
+    progress : callable(cycle, label, energy), optional
+        Graph cut progress (see :func:`usdface.scan.graphcut.alpha_expansion`).
 
     Returns
     -------
@@ -254,6 +274,8 @@ def compute_disparity(first, second, *, method: str = "sgbm", min_disparity: int
     OptionError
         Unknown method, bad disparity range.
     """
+    params = MatchingParameters() if params is None else params
+    method, num_disparities = params.method, params.num_disparities
     if method not in METHODS:
         raise OptionError(f"--method must be one of {', '.join(METHODS)}; got {method!r}")
     check_pair(first, second)
@@ -261,37 +283,33 @@ def compute_disparity(first, second, *, method: str = "sgbm", min_disparity: int
         raise OptionError(f"num_disparities must be >= 1; got {num_disparities}")
     if method != "graphcut":
         num_disparities = int(math.ceil(num_disparities / 16) * 16)
-        if block_size < 1 or block_size % 2 == 0:
-            raise OptionError(f"block size must be a positive odd number; got {block_size}")
+        if params.block_size < 1 or params.block_size % 2 == 0:
+            raise OptionError(f"block size must be a positive odd number; got {params.block_size}")
     a, b = np.asarray(first), np.asarray(second)
     if a.dtype != np.uint8:
         a, b = _gray_u8(a), _gray_u8(b)
-    if vertical:  # transpose: rows become columns, the top camera plays the left one
+    if params.vertical:  # transpose: rows become columns, the top camera plays the left one
         a = np.ascontiguousarray(np.swapaxes(a, 0, 1))
         b = np.ascontiguousarray(np.swapaxes(b, 0, 1))
     if num_disparities >= a.shape[1]:
         raise OptionError(f"{num_disparities} disparities do not fit in images {a.shape[1]} pixels wide "
                           f"along the baseline")
-    gc = dict(max_cycles=max_cycles, smoothness=smoothness, truncation=truncation, candidates=candidates,
-              time_limit=time_limit, progress=progress)
-    d, valid, info = _match_horizontal(a, b, method=method, min_disparity=int(min_disparity),
-                                       num_disparities=int(num_disparities), block_size=block_size,
-                                       sgbm_mode=sgbm_mode, wls_lambda=wls_lambda, wls_sigma=wls_sigma,
-                                       graphcut_options=gc)
-    if min_texture > 0:
+    resolved = replace(params, min_disparity=int(params.min_disparity), num_disparities=int(num_disparities))
+    d, valid, info = _match_horizontal(a, b, resolved, progress)
+    if params.min_texture > 0:
         import cv2
 
         g = _gray_u8(a).astype(np.float32)
         mu = cv2.blur(g, (7, 7))
         sd = np.sqrt(np.maximum(cv2.blur(g * g, (7, 7)) - mu * mu, 0))
-        textured = sd >= min_texture
+        textured = sd >= params.min_texture
         info["textured"] = float(textured.mean())
         valid = valid & textured
-    if vertical:
+    if params.vertical:
         d, valid = np.ascontiguousarray(d.T), np.ascontiguousarray(valid.T)
-    info.update(vertical=vertical, sgbm_mode=sgbm_mode if method != "graphcut" else None)
+    info.update(vertical=params.vertical, sgbm_mode=params.sgbm_mode if method != "graphcut" else None)
     return DisparityResult(disparity=d.astype(np.float32), valid=valid, method=method,
-                           min_disparity=int(min_disparity), num_disparities=int(num_disparities), info=info)
+                           min_disparity=resolved.min_disparity, num_disparities=resolved.num_disparities, info=info)
 
 
 def fill_background(disparity, valid, *, vertical: bool = False) -> np.ndarray:

@@ -19,10 +19,10 @@ import numpy as np
 
 from ..errors import MeshError
 from .landmarks import FACE_LANDMARKS
-from .render import FaceTexture, PinholeCamera, cap_holes, photo_uv, render_view, stereo_cameras
+from .render import FaceTexture, PinholeCamera, ViewStyle, cap_holes, photo_uv, render_view, stereo_cameras
 
-__all__ = ["FaceScene", "face_scene", "sample_face", "render_stereo_pair", "render_annotated_faces", "rotation_matrix",
-           "surface_locations", "evaluate_locations"]
+__all__ = ["FaceScene", "face_scene", "sample_face", "render_stereo_pair", "FaceVariation", "render_annotated_faces",
+           "rotation_matrix", "surface_locations", "evaluate_locations"]
 
 
 def rotation_matrix(yaw: float = 0.0, pitch: float = 0.0, roll: float = 0.0) -> np.ndarray:
@@ -159,16 +159,42 @@ def render_stereo_pair(scene: FaceScene, *, size=(640, 480), distance: float = 5
     cam = PinholeCamera.look_at(eye, target, f=f, size=(w, h))
     first, second, calib = stereo_cameras(cam, baseline, vertical=vertical)
     r1 = render_view(pts, scene.triangles, first, texture=scene.texture, texture_points=scene.points,
-                     light_dir=light_dir, background_noise=background_noise, seed=1)
+                     style=ViewStyle(light_dir=light_dir, background_noise=background_noise, seed=1))
     r2 = render_view(pts, scene.triangles, second, texture=scene.texture, texture_points=scene.points,
-                     light_dir=light_dir, background_noise=background_noise, seed=2)
+                     style=ViewStyle(light_dir=light_dir, background_noise=background_noise, seed=2))
     return {"first": r1.image, "second": r2.image, "depth": r1.depth, "calibration": calib, "camera": first,
             "points": pts, "mask": r1.mask}
 
 
+@dataclass(frozen=True)
+class FaceVariation:
+    """How the images of :func:`render_annotated_faces` vary.
+
+    Attributes
+    ----------
+    expression_scale : float
+        Each image mixes up to three expression shapes with random weights in ``[0, expression_scale]``.
+    yaw, pitch, roll : float
+        Pose ranges (degrees, uniform in +-range).
+    face_fraction : (lo, hi)
+        Face height as a fraction of the image height.
+    shift : float
+        Random offset of the face centre as a fraction of the image size.
+    distance : float
+        Camera distance (world units).
+    """
+
+    expression_scale: float = 0.6
+    yaw: float = 12.0
+    pitch: float = 8.0
+    roll: float = 8.0
+    face_fraction: tuple = (0.55, 0.75)
+    shift: float = 0.08
+    distance: float = 600.0
+
+
 def render_annotated_faces(scene: FaceScene, n: int, *, size=(256, 256), seed: int = 0, deltas=None,
-                           expression_scale: float = 0.6, yaw: float = 12.0, pitch: float = 8.0, roll: float = 8.0,
-                           face_fraction=(0.55, 0.75), shift: float = 0.08, distance: float = 600.0):
+                           variation: FaceVariation = FaceVariation()):
     """Face images with their 20 landmarks, for training and testing landmark fitting.
 
     Parameters
@@ -179,14 +205,9 @@ def render_annotated_faces(scene: FaceScene, n: int, *, size=(256, 256), seed: i
     size : (w, h)
     seed : int
     deltas : ndarray, shape (S, N, 3), optional
-        Expression shapes (mesh units, e.g. the sample "Face Units"); each image mixes up to
-        three with random weights in ``[0, expression_scale]``.
-    yaw, pitch, roll : float
-        Pose ranges (degrees, uniform in +-range).
-    face_fraction : (lo, hi)
-        Face height as a fraction of the image height.
-    shift : float
-        Random offset of the face centre as a fraction of the image size.
+        Expression shapes (mesh units, e.g. the sample "Face Units").
+    variation : FaceVariation
+        Ranges of expression, pose, face size and position.
 
     Returns
     -------
@@ -194,6 +215,7 @@ def render_annotated_faces(scene: FaceScene, n: int, *, size=(256, 256), seed: i
     landmarks : ndarray, shape (n, 20, 2)
         Pixel positions (OpenCV convention) in :data:`FACE_LANDMARKS` order.
     """
+    v = variation
     rng = np.random.default_rng(seed)
     w, h = int(size[0]), int(size[1])
     base = scene.points
@@ -205,21 +227,22 @@ def render_annotated_faces(scene: FaceScene, n: int, *, size=(256, 256), seed: i
         pts = base.copy()
         if deltas is not None and len(deltas):
             k = rng.choice(len(deltas), size=min(3, len(deltas)), replace=False)
-            wts = rng.uniform(0, expression_scale, size=k.size)
+            wts = rng.uniform(0, v.expression_scale, size=k.size)
             pts[:nm] += np.tensordot(wts, np.asarray(deltas)[k], axes=1) * scene.scale
-        R = rotation_matrix(rng.uniform(-yaw, yaw), rng.uniform(-pitch, pitch), rng.uniform(-roll, roll))
+        R = rotation_matrix(rng.uniform(-v.yaw, v.yaw), rng.uniform(-v.pitch, v.pitch), rng.uniform(-v.roll, v.roll))
         pts = (pts - centre) @ R.T + centre
-        frac = rng.uniform(*face_fraction)
-        f = frac * h * distance / height
-        off = rng.uniform(-shift, shift, size=2) * np.array([w, h])
-        eye = centre + np.array([0, 0, distance])
+        frac = rng.uniform(*v.face_fraction)
+        f = frac * h * v.distance / height
+        off = rng.uniform(-v.shift, v.shift, size=2) * np.array([w, h])
+        eye = centre + np.array([0, 0, v.distance])
         cam = PinholeCamera.look_at(eye, centre, f=f, size=(w, h),
                                     principal=((w - 1) / 2 + off[0], (h - 1) / 2 + off[1]))
         light = np.array([rng.uniform(-0.6, 0.6), rng.uniform(-0.2, 0.6), 1.0])
-        bg = tuple(int(v) for v in rng.integers(20, 200, size=3))
-        r = render_view(pts, scene.triangles, cam, texture=scene.texture, texture_points=base, light_dir=light,
-                        ambient=rng.uniform(0.3, 0.5), background=bg, background_noise=6.0,
-                        seed=int(rng.integers(1 << 30)))
+        bg = tuple(int(c) for c in rng.integers(20, 200, size=3))
+        ambient = rng.uniform(0.3, 0.5)  # drawn before the noise seed, as always (same images per seed)
+        style = ViewStyle(light_dir=light, ambient=ambient, background=bg, background_noise=6.0,
+                          seed=int(rng.integers(1 << 30)))
+        r = render_view(pts, scene.triangles, cam, texture=scene.texture, texture_points=base, style=style)
         lm3 = scene.landmarks(pts)
         uv, _ = cam.project(lm3)
         images.append(r.image)

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ComputeError, InputError, MarkerError, OptionError, list_names
+from ..errors import ComputeError, InputError, OptionError, list_names
 
 __all__ = ["ColourModel", "Detections", "MarkerDetector", "learn_colour_model", "check_radius_range",
            "check_seeds", "to_ycrcb", "find_circles"]

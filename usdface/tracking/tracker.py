@@ -29,7 +29,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ..errors import MarkerError, OptionError, list_names
-from .detect import ColourModel, Detections, MarkerDetector, find_circles, learn_colour_model, to_ycrcb
+from .detect import ColourModel, Detections, MarkerDetector, learn_colour_model, to_ycrcb
 
 log = logging.getLogger("usdface")
 
