@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     # "file:line: Category: text" with its source line
     warnings.showwarning = lambda message, category, *rest, **kw: log.warning("%s", message)
     processor = args._processor
-    name = f"usdface {processor.name}"
+    name = f"usdface {processor.path[0]}"  # as 0.2 named a sub-command's errors (usdface landmarks: error: ...)
     try:
         return _run(args, processor, name, parser)
     finally:
