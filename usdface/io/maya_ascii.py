@@ -52,15 +52,15 @@ import math
 import os
 import re
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..model.capture import Capture
-from ..errors import FormatError, MarkerError
-from ..errors import list_names
+from ..errors import MarkerError
 from ..io.limits import check_read_size
 from .captures import check_rate_option, read_text, resolve_units
+from .maya_scene import DAG_XFORM_TYPES, Node, Scene, XFORM_ATTRS, parse_statements, split_plug
 
 __all__ = ["read_maya_ascii", "MAYA_TIME_UNITS", "MAYA_LINEAR_UNITS"]
 
@@ -76,35 +76,17 @@ MAYA_LINEAR_UNITS = {
     "inch": "in", "in": "in", "foot": "ft", "ft": "ft",
 }
 
-# A statement starts at a line start with a command word. Maya indents continuation lines, and
-# their only possible leading words are boolean values, which are excluded.
-_STATEMENT_START = re.compile(r"\n[ \t]*(?!(?:yes|no|on|off|true|false)\b)([A-Za-z_]\w*)")
-_QUOTED = re.compile(r'"((?:[^"\\\n]|\\.)*)"')
-_NODE_TYPE = re.compile(r"\s*(\w+)")
-_NAME_FLAG = re.compile(r'-n(?:ame)?\s+"([^"]*)"')
-_PARENT_FLAG = re.compile(r'-p(?:arent)?\s+"([^"]*)"')
-_SIZE_FLAG = re.compile(r"-s(?:ize)?\s+(\d+)")
-_SELECT_NAME = re.compile(r'-ne\s+"?([^";\s]+)"?')
-_INDEX = re.compile(r"\[(\d+)(?::(\d+))?\]$")
-_TYPE_FLAG = re.compile(r'^\s*-type\s+"[^"]*"')
-_LINEAR_FLAG = re.compile(r"-l(?:inear)?\s+\"?(\w+)")
-_ANGLE_FLAG = re.compile(r"-a(?:ngle)?\s+\"?(\w+)")
-_TIME_FLAG = re.compile(r"-t(?:ime)?\s+\"?([\w.]+)")
 _FPS = re.compile(r"(\d+(?:\.\d+)?)fps$")
 
-_KEY_ATTRS = (".ktv", ".keyTimeValue")
-# attribute spellings -> canonical short name, for the transform attributes that place a point
-_XFORM_ATTRS = {}
 for _short, _long in (("t", "translate"), ("r", "rotate"), ("s", "scale")):
-    _XFORM_ATTRS[_short] = _XFORM_ATTRS[_long] = _short
+    XFORM_ATTRS[_short] = XFORM_ATTRS[_long] = _short
     for _axis in "xyz":
-        _XFORM_ATTRS[_short + _axis] = _XFORM_ATTRS[_long + _axis.upper()] = _short + _axis
+        XFORM_ATTRS[_short + _axis] = XFORM_ATTRS[_long + _axis.upper()] = _short + _axis
 for _short, _long in (("ro", "rotateOrder"), ("rp", "rotatePivot"), ("sp", "scalePivot"),
                       ("rpt", "rotatePivotTranslate"), ("spt", "scalePivotTranslate"),
                       ("ra", "rotateAxis"), ("sh", "shear"), ("jo", "jointOrient")):
-    _XFORM_ATTRS[_short] = _XFORM_ATTRS[_long] = _short
+    XFORM_ATTRS[_short] = XFORM_ATTRS[_long] = _short
 _TRANSLATE_CHANNELS = ("tx", "ty", "tz")
-_DAG_XFORM_TYPES = ("transform", "joint")
 _TIME_CURVE_TYPES = ("animCurveTL", "animCurveTU")
 # attributes that must be at their defaults on an ancestor, with those defaults
 _UNSUPPORTED_ANCESTOR_ATTRS = {"rp": 0.0, "sp": 0.0, "rpt": 0.0, "spt": 0.0, "ra": 0.0, "sh": 0.0, "jo": 0.0}
@@ -114,54 +96,6 @@ _ON_GRID_TOLERANCE = 1e-3  # frames
 #: a translate key farther than this from the origin (metres) is not a position: the file is broken
 MAX_KEY_METERS = 1000.0
 _TOKEN = re.compile(r"\S+")
-
-
-@dataclass
-class _Node:
-    kind: str
-    name: str
-    path: str
-    pos: int                                          # text position of its createNode
-    parent: "_Node | None" = None
-    static: dict = field(default_factory=dict)       # canonical attr -> list of floats
-    key_blocks: list = field(default_factory=list)   # (first, last, value_start, value_end, line)
-    declared_keys: int | None = None
-
-
-@dataclass
-class _Scene:
-    """What the reader keeps from a Maya ASCII file."""
-
-    source: str
-    text: str
-    nodes: list = field(default_factory=list)
-    by_name: dict = field(default_factory=dict)      # short name -> [nodes]
-    by_path: dict = field(default_factory=dict)      # DAG path -> node
-    connections: list = field(default_factory=list)  # (src, dst, line)
-    linear_unit: str = "centimeter"
-    angle_unit: str = "degree"
-    time_unit: str = "film"
-    drivers: dict | None = None                      # built by _driver_index
-
-    def line_of(self, pos: int) -> int:
-        return self.text.count("\n", 0, pos) + 1
-
-    def error(self, line: int | None, message: str) -> FormatError:
-        where = f"{self.source}, line {line}" if line else self.source
-        return FormatError(f"{where}: {message}")
-
-    def find(self, name: str, pos: int) -> _Node | None:
-        """Resolve a node name as Maya writes it: short name, partial or full DAG path.
-        ``pos`` (text position of the statement) is only used for the error message."""
-        if name.startswith("|"):
-            return self.by_path.get(name)
-        short = name.rsplit("|", 1)[-1]
-        candidates = self.by_name.get(short, [])
-        if "|" in name:
-            candidates = [n for n in candidates if n.path.endswith("|" + name)]
-        if len(candidates) > 1:
-            raise self.error(self.line_of(pos), f"node name {name!r} is ambiguous: {list_names(n.path for n in candidates)}")
-        return candidates[0] if candidates else None
 
 
 def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None, allow=frozenset()) -> Capture:
@@ -207,7 +141,7 @@ def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None
     source = os.fspath(path)
     rate = check_rate_option(rate)
     text = read_text(path)
-    scene = _parse_statements(text, source)
+    scene = parse_statements(text, source)
     unit = MAYA_LINEAR_UNITS.get(scene.linear_unit)
     if unit is None:
         raise scene.error(None, f"linear unit {scene.linear_unit!r} (currentUnit -l) is not supported; "
@@ -286,152 +220,24 @@ def read_maya_ascii(path, *, units: str | None = None, rate: float | None = None
 
 # -- statements --------------------------------------------------------------------------------
 
-def _parse_statements(text: str, source: str) -> _Scene:
-    """One pass over the statements, keeping nodes, static transform values, key block spans,
-    connections and units. Key numbers are NOT converted here."""
-    scene = _Scene(source=source, text=text)
-    if not text.startswith("//Maya ASCII"):
-        raise scene.error(1, "not a Maya ASCII file (the first line must start with '//Maya ASCII')")
-    starts = [(m.start() + 1, m.end(), m.group(1)) for m in _STATEMENT_START.finditer(text)]
-    ends = [s for s, _, _ in starts[1:]] + [len(text)]
-    current: _Node | None = None
-    for (stmt_start, args_start, command), end in zip(starts, ends):
-        if not _is_terminated(text, args_start, end):
-            line = scene.line_of(stmt_start)
-            head = text[stmt_start:min(end, stmt_start + 60)].split("\n", 1)[0]
-            raise scene.error(line, f"statement '{head.strip()}...' is not terminated by ';': "
-                                    f"the file is truncated or malformed")
-        if command == "setAttr":
-            if current is not None:
-                _set_attr(scene, current, args_start, end, stmt_start)
-        elif command == "createNode":
-            current = _create_node(scene, text[args_start:end], stmt_start)
-        elif command == "connectAttr":
-            names = _QUOTED.findall(text, args_start, end)
-            if len(names) >= 2:
-                scene.connections.append((names[0], names[1], stmt_start))
-        elif command == "select":
-            m = _SELECT_NAME.search(text, args_start, end)
-            current = scene.find(m.group(1), stmt_start) if m else None
-        elif command == "currentUnit":
-            args = text[args_start:end]
-            for regex, attr in ((_LINEAR_FLAG, "linear_unit"), (_ANGLE_FLAG, "angle_unit"), (_TIME_FLAG, "time_unit")):
-                m = regex.search(args)
-                if m:
-                    setattr(scene, attr, m.group(1))
-    _check_footer(scene)  # after the loop, so that a cut statement is reported as such
-    return scene
-
-
-def _check_footer(scene: _Scene) -> None:
-    tail = scene.text[-4096:].rstrip()
-    last_line = tail.rsplit("\n", 1)[-1].strip()
-    if not last_line.startswith("// End of"):
-        raise scene.error(
-            scene.line_of(len(scene.text.rstrip())),
-            "the file does not end with Maya's '// End of <name>.ma' line: it is truncated "
-            "(or was not written completely)",
-        )
-
-
-def _is_terminated(text: str, start: int, end: int) -> bool:
-    """True if the statement text[start:end] ends with ';' (ignoring trailing comment lines)."""
-    j = end
-    while j > start and text[j - 1] in " \t\r\n":
-        j -= 1
-    if j > start and text[j - 1] == ";":
-        return True
-    lines = text[start:end].split("\n")
-    while lines and (not lines[-1].strip() or lines[-1].lstrip().startswith("//")):
-        lines.pop()
-    return bool(lines) and lines[-1].rstrip().endswith(";")
-
-
-def _create_node(scene: _Scene, args: str, pos: int) -> _Node:
-    kind = _NODE_TYPE.match(args)
-    name = _NAME_FLAG.search(args)
-    if not kind or not name:
-        raise scene.error(scene.line_of(pos), f"createNode without a type and -n name: {args.strip()[:60]!r}")
-    parent_match = _PARENT_FLAG.search(args)
-    parent = None
-    if parent_match:
-        parent = scene.find(parent_match.group(1), pos)
-        if parent is None:
-            raise scene.error(scene.line_of(pos), f"parent {parent_match.group(1)!r} of node {name.group(1)!r} is not defined before it")
-        path = parent.path + "|" + name.group(1)
-    else:
-        path = "|" + name.group(1)
-    node = _Node(kind=kind.group(1), name=name.group(1), path=path, pos=pos, parent=parent)
-    scene.nodes.append(node)
-    scene.by_name.setdefault(node.name, []).append(node)
-    if node.kind in _DAG_XFORM_TYPES or parent is not None:
-        scene.by_path[path] = node
-    return node
-
-
-def _set_attr(scene: _Scene, node: _Node, start: int, end: int, pos: int) -> None:
-    text = scene.text
-    q1 = text.find('"', start, end)
-    q2 = text.find('"', q1 + 1, end) if q1 >= 0 else -1
-    if q2 < 0:
-        return  # setAttr without a quoted attribute: nothing usdface reads
-    attr = text[q1 + 1:q2]
-    if not attr.startswith("."):
-        # "node.attr": an attribute of a named node rather than of the current one
-        node_name, _, rest = attr.partition(".")
-        node = scene.find(node_name, pos)
-        if node is None:
-            return
-        attr = "." + rest
-    if node.kind.startswith("animCurve") and attr.startswith(_KEY_ATTRS):
-        size = _SIZE_FLAG.search(text, start, q1)
-        if size:
-            node.declared_keys = int(size.group(1))
-        index = _INDEX.search(attr)
-        if index is None:
-            return
-        first = int(index.group(1))
-        last = int(index.group(2)) if index.group(2) is not None else first
-        semi = text.find(";", q2 + 1, end)
-        if last < first:
-            raise scene.error(scene.line_of(pos), f"curve {node.name!r}: key range {attr} is empty")
-        trailing = text[semi + 1:end].strip()
-        if trailing and not trailing.startswith("//"):
-            raise scene.error(scene.line_of(semi + 1), f"unexpected text after the key block of curve {node.name!r}: {trailing[:40]!r}")
-        node.key_blocks.append((first, last, q2 + 1, semi, pos))
-        return
-    canonical = _XFORM_ATTRS.get(attr[1:])
-    if canonical is None or node.kind not in _DAG_XFORM_TYPES:
-        return
-    semi = text.find(";", q2 + 1, end)
-    value_text = _TYPE_FLAG.sub("", text[q2 + 1:semi])
-    try:
-        node.static[canonical] = [float(v) for v in value_text.split()]
-    except ValueError:
-        raise scene.error(scene.line_of(pos), f"node {node.name!r}: cannot read {attr} value {value_text.strip()[:60]!r}") from None
-
 
 # -- markers, hierarchy ------------------------------------------------------------------------
 
-def _split_plug(plug: str) -> tuple[str, str]:
-    node, _, attr = plug.partition(".")
-    return node, attr
 
-
-def _driver_index(scene: _Scene) -> dict:
+def _driver_index(scene: Scene) -> dict:
     """(id(node), canonical attr) -> (source node or None, source plug, text position), built once."""
     index = scene.drivers
     if index is None:
         index = {}
         for src, dst, pos in scene.connections:
-            dst_node_name, dst_attr = _split_plug(dst)
-            canonical = _XFORM_ATTRS.get(dst_attr)
+            dst_node_name, dst_attr = split_plug(dst)
+            canonical = XFORM_ATTRS.get(dst_attr)
             if canonical is None:
                 continue
             dst_node = scene.find(dst_node_name, pos)
             if dst_node is None:
                 continue
-            src_node = scene.find(_split_plug(src)[0], pos)
+            src_node = scene.find(split_plug(src)[0], pos)
             targets = [canonical + a for a in "xyz"] if canonical in ("t", "r", "s") else [canonical]
             for target in targets:
                 index[(id(dst_node), target)] = (src_node, src, pos)
@@ -439,24 +245,24 @@ def _driver_index(scene: _Scene) -> dict:
     return index
 
 
-def _driver_curve(scene: _Scene, node: _Node, channel: str) -> _Node | None:
+def _driver_curve(scene: Scene, node: Node, channel: str) -> Node | None:
     """The time curve driving ``node.channel``; FormatError if something else drives it."""
     driver = _driver_index(scene).get((id(node), channel))
     if driver is None:
         return None
     src_node, src_plug, pos = driver
-    if src_node is not None and src_node.kind in _TIME_CURVE_TYPES and _split_plug(src_plug)[1] in ("o", "output"):
+    if src_node is not None and src_node.kind in _TIME_CURVE_TYPES and split_plug(src_plug)[1] in ("o", "output"):
         return src_node
     what = f"a {src_node.kind} node" if src_node is not None else "an unknown node"
     raise scene.error(scene.line_of(pos), f"{node.name}.{channel} is driven by {src_plug!r} ({what}); only animation "
                             f"curves ({', '.join(_TIME_CURVE_TYPES)}) can be read")
 
 
-def _find_markers(scene: _Scene) -> tuple[list, dict]:
+def _find_markers(scene: Scene) -> tuple[list, dict]:
     drivers = _driver_index(scene)
     markers, channel_curves = [], {}
     for node in scene.nodes:
-        if node.kind not in _DAG_XFORM_TYPES:
+        if node.kind not in DAG_XFORM_TYPES:
             continue
         driven = [c for c in _TRANSLATE_CHANNELS if (id(node), c) in drivers]
         curves = {}
@@ -474,7 +280,7 @@ def _find_markers(scene: _Scene) -> tuple[list, dict]:
     return markers, channel_curves
 
 
-def _ancestor_chains(scene: _Scene, markers: list) -> list:
+def _ancestor_chains(scene: Scene, markers: list) -> list:
     chains = []
     for node in markers:
         chain, parent = [], node.parent
@@ -485,7 +291,7 @@ def _ancestor_chains(scene: _Scene, markers: list) -> list:
     return chains
 
 
-def _check_ancestor(scene: _Scene, node: _Node) -> None:
+def _check_ancestor(scene: Scene, node: Node) -> None:
     drivers = _driver_index(scene)
     for attr in ("rx", "ry", "rz", "sx", "sy", "sz", "ro"):
         if (id(node), attr) in drivers:
@@ -499,7 +305,7 @@ def _check_ancestor(scene: _Scene, node: _Node) -> None:
                                          f"shear, rotate axis and joint orient are not supported on groups")
 
 
-def _static_vector(node: _Node, attr: str, default: float) -> np.ndarray:
+def _static_vector(node: Node, attr: str, default: float) -> np.ndarray:
     values = list(node.static.get(attr, [default] * 3))
     values += [default] * (3 - len(values))
     for axis, name in enumerate("xyz"):
@@ -509,11 +315,11 @@ def _static_vector(node: _Node, attr: str, default: float) -> np.ndarray:
     return np.array(values[:3], dtype=np.float64)
 
 
-def _static_translate(node: _Node) -> np.ndarray:
+def _static_translate(node: Node) -> np.ndarray:
     return _static_vector(node, "t", 0.0)
 
 
-def _static_linear(scene: _Scene, node: _Node) -> np.ndarray | None:
+def _static_linear(scene: Scene, node: Node) -> np.ndarray | None:
     """3x3 rotate*scale of a group (column vectors), or None when it is the identity."""
     angles = _static_vector(node, "r", 0.0)
     scale = _static_vector(node, "s", 1.0)
@@ -536,7 +342,7 @@ def _static_linear(scene: _Scene, node: _Node) -> np.ndarray | None:
 
 # -- keys --------------------------------------------------------------------------------------
 
-def _parse_keys(scene: _Scene, curves: list) -> dict:
+def _parse_keys(scene: Scene, curves: list) -> dict:
     """Convert the key blocks of ``curves`` to arrays: id(curve) -> (times, values), in Maya
     time units. All key text is converted in one numpy call; the per-block path only runs to
     name the bad block when the counts disagree."""
@@ -562,7 +368,7 @@ def _parse_keys(scene: _Scene, curves: list) -> dict:
     return keys
 
 
-def _parse_blocks_one_by_one(scene: _Scene, blocks: list) -> np.ndarray:
+def _parse_blocks_one_by_one(scene: Scene, blocks: list) -> np.ndarray:
     parts = []
     for curve, (first, last, start, end, pos) in blocks:
         want = 2 * (last - first + 1)
@@ -586,7 +392,7 @@ def _parse_blocks_one_by_one(scene: _Scene, blocks: list) -> np.ndarray:
     return np.concatenate(parts) if parts else np.empty(0)
 
 
-def _check_key_values(scene: _Scene, curves: list, keys: dict, channel_curves: dict, unit: str) -> None:
+def _check_key_values(scene: Scene, curves: list, keys: dict, channel_curves: dict, unit: str) -> None:
     """FormatError for a translate key that is not a position (not finite, beyond 1 km)."""
     from ..units import METERS_PER_UNIT
 
@@ -610,7 +416,7 @@ def _check_key_values(scene: _Scene, curves: list, keys: dict, channel_curves: d
                                 "the key")
 
 
-def _key_line(scene: _Scene, curve: _Node, key: int) -> int | None:
+def _key_line(scene: Scene, curve: Node, key: int) -> int | None:
     """File line of key ``key``'s value in ``curve``'s key blocks."""
     for first, last, start, end, _ in curve.key_blocks:
         if first <= key <= last:
@@ -629,7 +435,7 @@ def _is_number(token: str) -> bool:
     return True
 
 
-def _assemble_curve(scene: _Scene, curve: _Node, numbers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _assemble_curve(scene: Scene, curve: Node, numbers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if not curve.key_blocks:
         raise scene.error(scene.line_of(curve.pos), f"curve {curve.name!r} drives a marker but has no keys (.ktv)")
     pairs = numbers.reshape(-1, 2)
@@ -657,7 +463,7 @@ def _assemble_curve(scene: _Scene, curve: _Node, numbers: np.ndarray) -> tuple[n
     return times, values
 
 
-def _time_unit_fps(scene: _Scene) -> float:
+def _time_unit_fps(scene: Scene) -> float:
     unit = scene.time_unit
     if unit in MAYA_TIME_UNITS:
         return MAYA_TIME_UNITS[unit]
@@ -688,7 +494,7 @@ class _TimeGrid:
     interpolated_samples: int = 0
 
     @classmethod
-    def fit(cls, scene: _Scene, keys: dict, fps: float, rate: float | None) -> "_TimeGrid":
+    def fit(cls, scene: Scene, keys: dict, fps: float, rate: float | None) -> "_TimeGrid":
         # the most common key spacing over all curves (one median, robust to a missing key)
         diffs = [np.diff(t) for t, _ in keys.values() if t.size > 1]
         key_rate = _snap_rate(fps / float(np.median(np.concatenate(diffs)))) if diffs else None
@@ -709,7 +515,7 @@ class _TimeGrid:
                    n_frames=n_frames, start_frame=start_frame,
                    time_offset_seconds=0.0 if abs(offset) < 1e-12 else float(offset))
 
-    def judge(self, scene: _Scene, keys: dict, *, n_markers: int, rate_given: bool, fps: float, allow) -> None:
+    def judge(self, scene: Scene, keys: dict, *, n_markers: int, rate_given: bool, fps: float, allow) -> None:
         """The grid's rate and frame count against :mod:`usdface.io.limits`, and the memory
         the frames need, before any array is made (keys 1e-9 frame apart are 2.4e10 Hz)."""
         spacing = 1.0 / (self.key_rate or self.rate) * fps
