@@ -2,13 +2,16 @@
 
 - :mod:`~usdface.tissue.model` — the three-layer prism model of a face mesh (epidermis, fascia, bone
   nodes; springs on prism edges and cross-diagonals; per-layer stiffness; volume per prism):
-  :func:`build_tissue_model`, :class:`TissueOptions`, :class:`TissueModel`.
+  :func:`build_tissue_model`, :class:`TissueOptions`, :class:`TissueModel`; the surface it is
+  built on in :mod:`~usdface.tissue.surface` (winding, normals, areas), the prisms' geometry and
+  offset field in :mod:`~usdface.tissue.prisms`.
 - :mod:`~usdface.tissue.forces` — the forces as numpy kernels (springs, biphasic, damping, volume
   preservation, skull contact, muscles); :mod:`~usdface.tissue._kernels` the same in numba.
 - :mod:`~usdface.tissue.muscles` — linear (Waters) and sphincter muscles, the jaw:
   :class:`Muscle`, :class:`Jaw`, :func:`compile_muscles`.
 - :mod:`~usdface.tissue.integrators` — :class:`Simulator` with explicit (the paper's), symplectic
-  and implicit Euler; :class:`DivergenceError`.
+  and implicit Euler (:mod:`~usdface.tissue.implicit`); :class:`DivergenceError`
+  (:mod:`~usdface.tissue.divergence`).
 - :mod:`~usdface.tissue.rig` — landmarks and the default rig of named muscles:
   :func:`default_rig`, :func:`face_landmarks`, :func:`warp_rig`, :class:`MuscleRig`.
 - :mod:`~usdface.tissue.expressions` — presets and contraction timelines (JSON).
@@ -30,7 +33,7 @@ _EXPORTS = {
     "expression_timeline": "expressions", "preset_contractions": "expressions", "read_timeline": "expressions",
     "FitResult": "fit", "LinearResponse": "fit", "fit_frames": "fit", "fit_sequence": "fit",
     "linear_response": "fit",
-    "DivergenceError": "integrators", "EquilibriumReport": "integrators",
+    "DivergenceError": "divergence", "EquilibriumReport": "integrators",
     "Simulator": "integrators",
     "TissueModel": "model", "TissueOptions": "model", "build_tissue_model": "model",
     "Jaw": "muscles", "Muscle": "muscles", "MuscleSet": "muscles", "compile_muscles": "muscles",

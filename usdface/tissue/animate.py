@@ -24,7 +24,7 @@ def animate(sim: Simulator, timeline: Timeline, *, frames=None, settle_first: bo
     DivergenceError
         With the frame at which the simulation blew up.
     """
-    from .integrators import DivergenceError
+    from .divergence import DivergenceError
 
     names = sim.muscles.names
     frames = timeline.frame_numbers() if frames is None else np.asarray(frames, dtype=np.float64)

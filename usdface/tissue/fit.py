@@ -73,7 +73,7 @@ def _solve_static(sim: Simulator, rhs: np.ndarray, x0: np.ndarray | None = None)
         sol, it, res = kn.block_cg(A, imp["indices"], imp["indptr"], diag, imp["G"], sim.prisms,
                                    sim.model.volume_coef, imp["Dv"], np.ascontiguousarray(rhs), x0, 1e-7, 0.0, 20000)
     else:
-        from .integrators import _cg_numpy
+        from .implicit import _cg_numpy
 
         sol, it, res = _cg_numpy(A, imp, sim.prisms, sim.model.volume_coef, imp["Dv"], rhs, x0, 1e-7, 0.0)
     if not np.isfinite(res) or res > 1e-4:
