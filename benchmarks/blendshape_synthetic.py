@@ -27,7 +27,7 @@ def load():
     from usdface.blendshape.rig import load_npz_rig, marker_basis
     from usdface.io.meshes import read_mesh
     from usdface.mesh.layout import read_layout
-    from usdface.processors.evaluate import binding_from_layout
+    from usdface.mesh.layout_binding import binding_from_layout
 
     mesh = read_mesh(ROOT / "sample_assets/meshes/makehuman_hm08_face_cm.obj")
     rig = load_npz_rig(ROOT / "sample_assets/meshes/makehuman_hm08_face_units_cm.npz", mesh)

@@ -49,7 +49,7 @@ def main(argv=None) -> int:
     from usdface.io.meshes import read_mesh
     from usdface.mesh.layout import read_layout
     from usdface.mesh.topology import find_hole_regions
-    from usdface.processors.evaluate import binding_from_layout
+    from usdface.mesh.layout_binding import binding_from_layout
     from usdface import api
     from usdface.options import ShapesTransferOptions
     from usdface.usd.blendshape_layer import read_blendshape_rig

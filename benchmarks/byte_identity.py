@@ -12,7 +12,9 @@ difference::
 
 Jobs (the README's commands): ``main`` (the main job), ``all`` (``run --output-kind all``),
 ``batch`` (the batch example, serial), ``solve`` (``solve --csv --livelink``), ``playblast`` (of
-the main job's shot). Exit 0 when every file agrees.
+the main job's shot); on request also ``tissue`` (``muscles``, ``simulate``, ``fit-muscles``
+on the sample face and jaw take) and ``evaluate`` (the quality table). Exit 0 when every file
+agrees.
 """
 from __future__ import annotations
 
@@ -59,6 +61,22 @@ def jobs(sa: Path, out: Path) -> dict[str, list[list[str]]]:
                    "--livelink", str(out / "curves_livelink.csv")]],
         "playblast": [["run", "--mesh", mesh, "--capture", jaw, "--layout", layout, "-o", str(out / "pb")],
                       ["playblast", str(out / "pb" / "shot.usda"), "-o", str(out / "jaw.mp4"), "--size", "960x540"]],
+        "tissue": [["import-mesh", mesh, "-o", str(out / "face.usdc")],
+                   ["import-capture", jaw, "-o", str(out / "jaw.usdc")],
+                   ["bind", "--mesh", str(out / "face.usdc"), "--capture", str(out / "jaw.usdc"), "--layout", layout,
+                    "-o", str(out / "binding.usda")],
+                   ["muscles", "--mesh", str(out / "face.usdc"), "--layout", layout, "--force", "zygomaticMajor=20000",
+                    "--tissue", "k_deep=25", "-o", str(out / "rig.usda")],
+                   ["muscles", "--mesh", mesh, "-o", str(out / "rig_obj.usda")],
+                   ["simulate", "--mesh", str(out / "face.usdc"), "--rig", str(out / "rig.usda"), "--expression", "joy",
+                    "--ramp", "2", "--hold", "1", "-o", str(out / "joy.usdc")],
+                   ["simulate", "--mesh", mesh, "--rig", str(out / "rig_obj.usda"), "--expression", "surprise",
+                    "--integrator", "symplectic", "--ramp", "1", "--hold", "0", "-o", str(out / "surprise.usdc")],
+                   ["fit-muscles", "--mesh", str(out / "face.usdc"), "--rig", str(out / "rig.usda"), "--capture",
+                    str(out / "jaw.usdc"), "--binding", str(out / "binding.usda"), "--frames", "200", "260", "--step",
+                    "20", "--refine", "1", "--report", str(out / "fit.json"), "-o", str(out / "fit.usdc")]],
+        "evaluate": [["evaluate", "--mesh", mesh, "--shapes", shapes, "--layout", layout, "--only", "jawOpen",
+                      "eyeBlink*", "--methods", "euclidean", "hybrid", "--pins", "upper", "-o", str(out / "quality.md")]],
     }
 
 
@@ -166,7 +184,7 @@ def main(argv=None) -> int:
     ap.add_argument("--before", required=True, help="git revision of the starting point (e.g. 9e2e68a)")
     ap.add_argument("--after", default=None, help="git revision to compare (default: this working tree)")
     ap.add_argument("--jobs", nargs="+", default=["main", "all", "batch", "solve", "playblast"],
-                    choices=["main", "all", "batch", "solve", "playblast"])
+                    choices=["main", "all", "batch", "solve", "playblast", "tissue", "evaluate"])
     ap.add_argument("--keep", help="keep the outputs in this folder")
     args = ap.parse_args(argv)
     root = Path(args.keep or tempfile.mkdtemp(prefix="usdface-byteid-"))

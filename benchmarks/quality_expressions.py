@@ -47,7 +47,7 @@ from usdface.evaluation.quality import (  # noqa: E402
 from usdface.io.meshes import read_mesh  # noqa: E402
 from usdface.mesh.layout import read_layout  # noqa: E402
 from usdface.mesh.topology import edge_topology, find_hole_regions  # noqa: E402
-from usdface.processors.evaluate import binding_from_layout  # noqa: E402
+from usdface.mesh.layout_binding import binding_from_layout  # noqa: E402
 
 ASSETS = REPO / "sample_assets"
 MESH = ASSETS / "meshes" / "makehuman_hm08_face_cm.obj"

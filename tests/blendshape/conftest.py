@@ -10,7 +10,7 @@ def makehuman(sample_assets):
     from usdface.io.meshes import read_mesh
     from usdface.mesh.layout import read_layout
     from usdface.mesh.topology import find_hole_regions
-    from usdface.processors.evaluate import binding_from_layout
+    from usdface.mesh.layout_binding import binding_from_layout
 
     mesh = read_mesh(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")
     rig = load_npz_rig(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz", mesh)

@@ -129,7 +129,7 @@ def test_still_capture_and_unmoved_markers(tmp_path, sample_assets, rig_args, ca
     z = np.load(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz")
     from usdface.io.meshes import read_mesh
     from usdface.mesh.layout import read_layout
-    from usdface.processors.evaluate import binding_from_layout
+    from usdface.mesh.layout_binding import binding_from_layout
 
     mesh = read_mesh(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")
     b = binding_from_layout(mesh, read_layout(sample_assets / "layouts" / "makehuman_hm08_face.layout.json"))

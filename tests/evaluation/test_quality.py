@@ -19,7 +19,7 @@ from usdface.evaluation.quality import (REGION_NAMES, TransferConfig as T, Trans
 from usdface.io.meshes import read_mesh
 from usdface.mesh.layout import read_layout
 from usdface.mesh.topology import find_hole_regions
-from usdface.processors.evaluate import binding_from_layout
+from usdface.mesh.layout_binding import binding_from_layout
 
 SHAPES = ("jawOpen", "eyeBlinkLeft", "mouthSmileLeft", "browInnerUp")
 

@@ -91,7 +91,7 @@ class PresetRun:
 def preset_runs(faces) -> dict:
     """Every preset on both faces at the default (implicit) step: ramp 0 -> 1 over 3 frames at 24 fps
     (as in the paper), then held until the tissue is still. {(face, preset): PresetRun}."""
-    from usdface.processors.tissue import volume_stats
+    from usdface.tissue.simulation import volume_stats
 
     out = {}
     for fname, f in faces.items():

@@ -6,8 +6,8 @@ import pytest
 
 from usdface.mesh.binding import project_to_surface
 from usdface.mesh.layout import read_layout
-from usdface.tissue.fit import (LinearResponse, bound_points, fit_frames, fit_sequence, linear_response, marker_error,
-                                simulate_controls)
+from usdface.tissue.fit import (FitParameters, LinearResponse, bound_points, fit_frames, fit_sequence, linear_response,
+                                marker_error, simulate_controls)
 
 
 def test_bounded_least_squares_on_an_exact_linear_model():
@@ -53,7 +53,8 @@ def test_fit_recovers_simulated_contractions(face, markers):
     rest = bound_points(face.model.rest[:sim.n], tri, bary)
     skins = np.stack(list(simulate_controls(sim, truth, list(resp.names), rate=24, settle_steps=2)))
     d = np.einsum("mk,fmkd->fmd", bary, skins[:, tri]) - rest
-    res = fit_sequence(sim, tri, bary, d, rate=24, response=resp, refine=2, marker_names=names)
+    res = fit_sequence(sim, tri, bary, d, rate=24, response=resp, parameters=FitParameters(refine=2),
+                       marker_names=names)
     err = np.abs(res.controls - truth)
     assert err.mean() <= 0.06
     final = res.errors["pass3"]["rms"]

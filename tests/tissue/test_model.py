@@ -8,8 +8,9 @@ import pytest
 
 from usdface.errors import MeshError, OptionError
 from usdface.model.mesh import FaceMesh
-from usdface.tissue.model import (SPRING_KINDS, TissueOptions, build_tissue_model, inconsistent_faces, prism_volumes,
-                                  triangle_edges)
+from usdface.tissue.model import SPRING_KINDS, TissueOptions, build_tissue_model
+from usdface.tissue.prisms import prism_volumes
+from usdface.tissue.surface import inconsistent_faces, triangle_edges
 
 from .conftest import grid_mesh
 

@@ -12,7 +12,7 @@ from usdface.usd.muscle_layer import read_animation_points, read_contractions, r
 
 
 @pytest.fixture
-def tissue_cli(monkeypatch):
+def tissue_cli():
     """The usdface command, in-process."""
     def run(*argv):
         return cli.main([str(a) for a in argv])
@@ -162,3 +162,92 @@ def test_installed_command(tmp_path, sample_assets, repo_root):
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["muscles"][0] == "zygomaticMajor_L"
     assert read_rig_layer(out).placement == "mesh"
+
+
+def test_tissue_commands_in_memory_write_nothing(mesh_layer, sample_assets, tmp_path, monkeypatch):
+    """`usdface.api.muscles` and `simulate` on layers in memory (a DCC's scene): the same rig and the
+    same animation as from files, and no file written anywhere."""
+    from pxr import Sdf
+
+    from usdface import api
+    from usdface.options import MusclesOptions, SimulateOptions
+
+    files = tmp_path / "files"
+    files.mkdir()
+    rig_file, anim_file = files / "rig.usda", files / "joy.usdc"
+    options = MusclesOptions(force={"zygomaticMajor": 20000})
+    assert api.muscles(mesh_layer, options, output=rig_file).layer == str(rig_file)
+    sim_options = SimulateOptions(expression="joy", ramp=1, hold=0)
+    from_files = api.simulate(mesh_layer, rig_file, sim_options, output=anim_file)
+    assert from_files.summary["shot"] == str(files / "joy_shot.usda")
+
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    mesh = api.import_mesh(str(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")).layer
+    rig = api.muscles(mesh, options).layer
+    assert isinstance(rig, Sdf.Layer) and rig.anonymous
+    assert read_rig_layer(rig).muscle("zygomaticMajor_R").max_force == 20000
+    assert [m.name for m in read_rig_layer(rig).muscles] == [m.name for m in read_rig_layer(rig_file).muscles]
+    result = api.simulate(mesh, rig, sim_options)
+    assert result.summary["shot"] is None and "shot stage" not in result.text[0]
+    assert list(work.iterdir()) == [] and sorted(p.name for p in files.iterdir()) == ["joy.usdc", "joy_shot.usda",
+                                                                                      "rig.usda"]
+    times, pts = read_animation_points(None, stage=api.new_stage(result.layer, rig, mesh))
+    times_f, pts_f = read_animation_points(anim_file)
+    assert times.tolist() == times_f.tolist() == [0.0, 1.0]
+    np.testing.assert_array_equal(pts, pts_f)
+    assert read_contractions(None, stage=api.new_stage(result.layer, rig))[1]["zygomaticMajor_L"].tolist() == [0.0, 1.0]
+
+
+def test_tissue_options_parse_and_check_once():
+    from usdface.errors import OptionError
+    from usdface.options import FitMusclesOptions, MusclesOptions, SimulateOptions
+    from usdface.tissue.fit import FitParameters
+
+    o = MusclesOptions(force=["zygomaticMajor=20000", "risorius= 5", "zygomaticMajor=1"], tissue={"k_deep": 25})
+    assert list(o.max_forces().items()) == [("zygomaticMajor", 1.0), ("risorius", 5.0)]
+    assert o.tissue_settings() == {"k_deep": 25.0}
+    assert o.replace(layout="face.layout.json").force == o.force  # a copy keeps the parsed values
+    bad = [(MusclesOptions, {"force": ["zyg"]}, "--force: expected NAME=VALUE; got 'zyg'"),
+           (MusclesOptions, {"force": ["zygomaticMajor=abc"]}, "--force: zygomaticMajor needs a number; got 'abc'"),
+           (MusclesOptions, {"force": ["bogus=5"]}, "--force: unknown muscle(s) bogus; known: corrugator, "),
+           (MusclesOptions, {"tissue": ["bogus=1"]}, "unknown tissue option(s) bogus; known: "),
+           (SimulateOptions, {"tissue": ["k_deep=-1"]}, "tissue option k_deep must be a positive number; got -1.0"),
+           (MusclesOptions, {"layout": "a.json", "binding": "b.usda"},
+            "muscles: give at most one of --layout and --binding"),
+           (SimulateOptions, {"dt": "fast"}, "--dt fast: expected a number"),
+           (SimulateOptions, {"ramp": 1.5}, "--ramp 1.5: expected a whole number"),
+           (FitMusclesOptions, {"step": 0}, "--step must be >= 1; got 0"),
+           (FitMusclesOptions, {"refine": -1}, "--refine -1: expected a whole number >= 0"),
+           (FitMusclesOptions, {"regularization": -1}, "--regularization -1: expected a number >= 0"),
+           (FitMusclesOptions, {"frames": [3]}, "--frames [3]: expected two values (FIRST END)")]
+    for cls, kwargs, message in bad:
+        with pytest.raises(OptionError) as e:
+            cls(**kwargs)
+        assert str(e.value).startswith(message), (kwargs, str(e.value))
+    f = FitMusclesOptions(frames=["200", 260], refine=0)
+    assert f.frames == (200, 260) and f.parameters() == FitParameters(regularization=1e-3, refine=0)
+
+
+def test_fit_muscles_refuses_negative_refinement_in_one_line(tissue_cli, tmp_path, capsys):
+    """``--refine -1`` and ``--regularization -1`` used to end in a traceback (exit 1) after the
+    capture was read; they are refused before any work, naming the option."""
+    args = ["fit-muscles", "--mesh", tmp_path / "m.usdc", "--rig", tmp_path / "r.usda", "--capture",
+            tmp_path / "c.usdc", "--binding", tmp_path / "b.usda", "-o", tmp_path / "fit.usdc"]
+    assert tissue_cli(*args, "--refine", "-1") == 2
+    assert capsys.readouterr().err.strip() == "usdface fit-muscles: error: --refine -1: expected a whole number >= 0"
+    assert tissue_cli(*args, "--regularization", "-1") == 2
+    assert capsys.readouterr().err.strip() == \
+        "usdface fit-muscles: error: --regularization -1.0: expected a number >= 0"
+
+
+def test_fit_muscles_checks_the_report_folder_first(tissue_cli, mesh_layer, tmp_path, capsys):
+    """A report in a missing folder used to fail (exit 1) after the fit, with the layer already
+    written; it is refused before any work."""
+    out, report = tmp_path / "fit.usdc", tmp_path / "missing" / "fit.json"
+    assert tissue_cli("fit-muscles", "--mesh", mesh_layer, "--rig", tmp_path / "r.usda", "--capture",
+                      tmp_path / "c.usdc", "--binding", tmp_path / "b.usda", "--report", report, "-o", out) == 2
+    assert capsys.readouterr().err.strip() == \
+        f"usdface fit-muscles: error: --report {report}: folder {report.parent} does not exist"
+    assert not out.exists()

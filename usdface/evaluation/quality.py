@@ -831,9 +831,7 @@ class TransferSetup:
 
 
 def evaluate(mesh: FaceMesh, regions: list[Region], binding: Binding, shape_names, deltas, *,
-             configs=None, region_radius_cm: float = REGION_RADIUS_CM, hybrid_radius_cm: float = 1.0,
-             hybrid_sigma_cm: float = 2.0, hybrid_threshold: float = 0.6, still_cm: float = STILL_CM,
-             keep_predictions: bool = False, skipped: dict | None = None,
+             configs=None, still_cm: float = STILL_CM, keep_predictions: bool = False, skipped: dict | None = None,
              setup: TransferSetup | None = None) -> QualityReport:
     """Transfer every shape's marker displacements with every configuration; measure the errors.
 
@@ -850,11 +848,6 @@ def evaluate(mesh: FaceMesh, regions: list[Region], binding: Binding, shape_name
         True vertex displacements (mesh units); see :func:`select_shapes` to drop tiny shapes.
     configs : sequence of TransferConfig, optional
         Default :func:`default_configs`.
-    region_radius_cm : float
-        Error-region radius around the mouth/eye loops (cm).
-    hybrid_radius_cm, hybrid_sigma_cm, hybrid_threshold : float
-        Hybrid distance parameters (the pipeline's: 1 cm, 2 cm, 0.6); a config's ``threshold``
-        overrides the last.
     still_cm : float
         "Still" vertex threshold for the leak measure (cm).
     keep_predictions : bool
@@ -862,7 +855,11 @@ def evaluate(mesh: FaceMesh, regions: list[Region], binding: Binding, shape_name
     skipped : dict, optional
         Shapes dropped beforehand (name -> reason), carried into the report.
     setup : TransferSetup, optional
-        Reuse distance matrices already computed for this mesh and binding (its radii win).
+        The distance matrices for this mesh and binding (reused across calls) and the radii they
+        are made with: ``region_radius_cm``, the error-region radius around the mouth/eye loops
+        (cm); ``hybrid_radius_cm``, ``hybrid_sigma_cm``, ``hybrid_threshold``, the hybrid distance
+        parameters (a config's ``threshold`` overrides the last). Default: a TransferSetup with
+        the pipeline's (:data:`REGION_RADIUS_CM`, 1 cm, 2 cm, 0.6).
 
     Returns
     -------
@@ -882,9 +879,7 @@ def evaluate(mesh: FaceMesh, regions: list[Region], binding: Binding, shape_name
     if len(names) == 0:
         raise InputError("evaluate: no shapes to evaluate")
     if setup is None:
-        setup = TransferSetup(mesh, regions, binding, region_radius_cm=region_radius_cm,
-                              hybrid_radius_cm=hybrid_radius_cm, hybrid_sigma_cm=hybrid_sigma_cm,
-                              hybrid_threshold=hybrid_threshold)
+        setup = TransferSetup(mesh, regions, binding)
     cm = setup.cm
     to_cm = 1.0 / cm
     M = binding.n_markers

@@ -1,22 +1,30 @@
-"""Options of `usdface evaluate`: transfer quality against ground-truth expression shapes."""
+"""Options of `usdface evaluate`: transfer quality against ground-truth expression shapes.
+
+The ranges of the region and hybrid numbers are checked by the evaluation itself
+(:mod:`usdface.evaluation.quality`, :mod:`usdface.distance`), with the messages usdface has always
+given; the options check their types.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from ..errors import OptionError
 from .fields import Options, option
-from .values import boolean, nonnegative_float, path, positive_float, shown, unit_interval
+from .tissue import real_value
+from .values import boolean, path, shown
 from .video import MESH_UNITS
 
 
 def names_value(value, flag):
-    """One or more words (``--methods euclidean hybrid``; commas split too)."""
+    """One or more words (``--methods euclidean hybrid``; commas split too: ``euclidean,hybrid``);
+    None when no word is left (the command's default)."""
     if value is None:
         return None
-    items = [value] if isinstance(value, str) else list(value)
-    if not all(isinstance(v, (str, int, float)) for v in items):
+    items = [value] if isinstance(value, (str, int, float)) else list(value)
+    if not all(isinstance(v, (str, int, float)) and not isinstance(v, bool) for v in items):
         raise OptionError(f"{flag} {shown(value)}: expected names")
-    return tuple(str(v) for v in items)
+    words = tuple(w.strip() for v in items for w in str(v).split(",") if w.strip())
+    return words or None
 
 
 @dataclass(frozen=True)
@@ -51,17 +59,17 @@ class EvaluateOptions(Options):
                                 help="evaluate only these shapes (names or glob patterns)")
     skip: tuple | None = option(None, flag="--skip", coerce=names_value, nargs="+", metavar="NAME", group="shapes",
                                 help="skip these shapes (names or glob patterns)")
-    min_displacement: float = option(0.1, flag="--min-displacement", coerce=nonnegative_float, type=float,
+    min_displacement: float = option(0.1, flag="--min-displacement", coerce=real_value, type=float,
                                      metavar="CM", group="shapes",
                                      help="skip shapes whose largest displacement is below this (cm)")
-    region_radius: float = option(1.5, flag="--region-radius", coerce=positive_float, type=float, metavar="CM",
+    region_radius: float = option(1.5, flag="--region-radius", coerce=real_value, type=float, metavar="CM",
                                   group="regions",
                                   help="mouth / eye error regions: vertices within this of the hole loops (cm)")
-    hybrid_radius: float = option(1.0, flag="--hybrid-radius", coerce=nonnegative_float, type=float,
+    hybrid_radius: float = option(1.0, flag="--hybrid-radius", coerce=real_value, type=float,
                                   metavar="CM", group="regions", help="hybrid region radius (cm)")
-    sigma: float = option(2.0, flag="--sigma", coerce=positive_float, type=float, metavar="CM", group="regions",
+    sigma: float = option(2.0, flag="--sigma", coerce=real_value, type=float, metavar="CM", group="regions",
                           help="hybrid weight width (cm)")
-    threshold: float = option(0.6, flag="--threshold", coerce=unit_interval, type=float, group="regions",
+    threshold: float = option(0.6, flag="--threshold", coerce=real_value, type=float, group="regions",
                               help="hybrid: geodesic term skipped where w <= this")
     no_per_shape: bool = option(False, flag="--no-per-shape", coerce=boolean, group="report",
                                 help="leave the per-shape table out")

@@ -120,7 +120,7 @@ def volume_kernel(x, v, prisms, V0, coef, beta, F, vol_out):  # pragma: no cover
     """Add volume preservation forces into F, store volumes in vol_out; return the energy.
 
     Prism volume = -(T(a,b,c,a') + T(b,c,a',b') + T(c,a',b',c')), T the signed tet volume
-    (see :func:`usdface.tissue.model.prism_volumes`). Force ``-c (V - V0 + beta dV/dt) grad V``:
+    (see :func:`usdface.tissue.prisms.prism_volumes`). Force ``-c (V - V0 + beta dV/dt) grad V``:
     the ``beta`` term damps volume changes (stiffness-proportional, like the springs' axial damping).
     """
     e = 0.0

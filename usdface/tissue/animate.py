@@ -1,6 +1,7 @@
-"""Driving a Simulator through a timeline, frame by frame."""
+"""Driving a Simulator through a timeline, frame by frame, and the controls of an animation."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
@@ -24,7 +25,7 @@ def animate(sim: Simulator, timeline: Timeline, *, frames=None, settle_first: bo
     DivergenceError
         With the frame at which the simulation blew up.
     """
-    from .integrators import DivergenceError
+    from .divergence import DivergenceError
 
     names = sim.muscles.names
     frames = timeline.frame_numbers() if frames is None else np.asarray(frames, dtype=np.float64)
@@ -44,3 +45,32 @@ def animate(sim: Simulator, timeline: Timeline, *, frames=None, settle_first: bo
             raise e.at_frame(int(round(fr))) from None
         prev = fr
         yield float(fr), sim.skin()
+
+
+@dataclass(frozen=True)
+class ControlSamples:
+    """The controls of a simulated animation at its frames: what an animation layer records
+    beside the skin points (:func:`usdface.usd.muscle_layer.write_tissue_animation_layer`).
+
+    Attributes
+    ----------
+    time_codes : ndarray (F,) float64
+        Time code of each frame.
+    rate : float
+        Time codes per second.
+    muscle_names : tuple of str, length M
+    contractions : ndarray (F, M) float64
+        Contraction of each muscle per frame, in [0, 1].
+    jaw : ndarray (F,) float64
+        Jaw opening per frame, in [0, 1].
+    """
+
+    time_codes: np.ndarray
+    rate: float
+    muscle_names: tuple
+    contractions: np.ndarray
+    jaw: np.ndarray
+
+    @property
+    def n_frames(self) -> int:
+        return int(np.asarray(self.time_codes).size)

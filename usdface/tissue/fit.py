@@ -27,10 +27,71 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ComputeError, OptionError
+from ..errors import ComputeError, MarkerError, OptionError, list_names
 from . import _kernels as kn
 from .expressions import JAW_KEY
 from .integrators import DivergenceError, Simulator
+
+
+@dataclass(frozen=True)
+class FitParameters:
+    """How :func:`fit_sequence` fits (the options of `usdface fit-muscles` build it:
+    :meth:`usdface.options.FitMusclesOptions.parameters`).
+
+    Attributes
+    ----------
+    regularization : float
+        ``lam`` >= 0: Tikhonov weight relative to each column's norm (keeps unobservable muscles
+        at 0).
+    refine : int
+        Refinement passes >= 0 (each: simulate, correct the controls from the marker residual).
+    settle_steps : int
+        Extra steps per frame with the controls held (see :func:`simulate_controls`).
+    """
+
+    regularization: float = 1e-3
+    refine: int = 1
+    settle_steps: int = 1
+
+
+def capture_displacements(capture, binding, *, stabilize="auto"):
+    """Marker displacements from the neutral frame in mesh space, in the binding's marker order.
+
+    Parameters
+    ----------
+    capture : Capture
+        Marker positions (F, M', 3) in capture units.
+    binding : Binding
+        The markers bound on the mesh (its names pick and order the capture's markers).
+    stabilize : {"auto", "none"}
+        "auto": remove the head motion first when the capture is not stabilised.
+
+    Returns
+    -------
+    displacements : ndarray (F, M, 3) float64
+        ``T (p_f - p_neutral)`` with ``T`` the binding's displacement transform (mesh units).
+    capture : Capture
+        The capture used (stabilised when it was done here).
+
+    Raises
+    ------
+    MarkerError
+        A bound marker is not in the capture (named).
+    """
+    if stabilize not in ("auto", "none"):
+        raise OptionError(f"stabilize must be 'auto' or 'none'; got {stabilize!r}")
+    missing = [n for n in binding.names if n not in capture.names]
+    if missing:
+        raise MarkerError(f"binding markers not in the capture: {list_names(missing)}; capture has "
+                          f"{list_names(capture.names)}")
+    if stabilize == "auto" and capture.head_motion is None:
+        from ..capture.stabilize import stabilize as stabilize_fn
+
+        capture, _ = stabilize_fn(capture)
+    idx = [capture.names.index(n) for n in binding.names]
+    pos = capture.positions[:, idx]
+    disp = pos - pos[capture.neutral_frame]
+    return disp @ binding.displacement_transform().T, capture
 
 
 @dataclass(frozen=True)
@@ -73,7 +134,7 @@ def _solve_static(sim: Simulator, rhs: np.ndarray, x0: np.ndarray | None = None)
         sol, it, res = kn.block_cg(A, imp["indices"], imp["indptr"], diag, imp["G"], sim.prisms,
                                    sim.model.volume_coef, imp["Dv"], np.ascontiguousarray(rhs), x0, 1e-7, 0.0, 20000)
     else:
-        from .integrators import _cg_numpy
+        from .implicit import _cg_numpy
 
         sol, it, res = _cg_numpy(A, imp, sim.prisms, sim.model.volume_coef, imp["Dv"], rhs, x0, 1e-7, 0.0)
     if not np.isfinite(res) or res > 1e-4:
@@ -274,8 +335,8 @@ def marker_error(pred: np.ndarray, target: np.ndarray) -> dict:
             "p95": float(np.percentile(dist, 95)), "max": float(dist.max())}
 
 
-def fit_sequence(sim: Simulator, tri_vertices, bary, displacements, *, rate: float, marker_names=None,
-                 regularization: float = 1e-3, refine: int = 1, settle_steps: int = 1, response=None,
+def fit_sequence(sim: Simulator, tri_vertices, bary, displacements, *, rate: float,
+                 parameters: FitParameters | None = None, marker_names=None, response=None,
                  progress=None) -> FitResult:
     """Fit contractions to a marker sequence and simulate them (linear fit, then refinement).
 
@@ -288,15 +349,21 @@ def fit_sequence(sim: Simulator, tri_vertices, bary, displacements, *, rate: flo
         Marker displacements from neutral in mesh space (mesh units); NaN for gaps.
     rate : float
         Frames per second of the sequence.
-    refine : int
-        Refinement passes (each: simulate, correct the controls from the marker residual).
+    parameters : FitParameters, optional
+        Regularisation, refinement passes and settling steps (default :class:`FitParameters`).
+    marker_names : sequence of str, optional
+        Names of the M markers, for the per-marker errors.
     response : LinearResponse, optional
         Reuse a response computed on this simulator and binding.
+    progress : object with ``update(n)``, optional
+        Told of every simulated frame.
 
     Returns
     -------
     FitResult
     """
+    params = parameters or FitParameters()
+    regularization, refine, settle_steps = params.regularization, params.refine, params.settle_steps
     tri_vertices = np.asarray(tri_vertices)
     bary = np.asarray(bary, dtype=np.float64)
     d = np.asarray(displacements, dtype=np.float64)

@@ -99,7 +99,7 @@ def _tet_grads(a, b, c, d):
 
 
 def prism_volume_gradients(x, prisms):
-    """Prism volumes and their gradients (three-tetrahedron split, see :func:`~usdface.tissue.model.prism_volumes`).
+    """Prism volumes and their gradients (three-tetrahedron split, see :func:`~usdface.tissue.prisms.prism_volumes`).
 
     Parameters
     ----------

@@ -21,6 +21,10 @@ below vertex ``i``).
 Units: lengths in mesh units; forces in model force units; masses in model mass units; time in
 seconds. ``length_scale`` (1 cm expressed in mesh units) makes the defaults independent of the
 mesh's unit: spring force ``k (l - l0) / length_scale``, mass ``density * area / length_scale**2``.
+
+This module holds the options, the model and its construction; the surface checks (winding,
+normals, areas) are in :mod:`usdface.tissue.surface`, the prism geometry and the offset field in
+:mod:`usdface.tissue.prisms`.
 """
 from __future__ import annotations
 
@@ -29,12 +33,11 @@ import logging
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
-from ..errors import MeshError, OptionError, list_names
+from ..errors import OptionError, list_names
 from ..model.mesh import FaceMesh
-from ..units import METERS_PER_UNIT
+from .prisms import offset_field, prism_volumes
+from .surface import length_scale_of, mesh_where, prepare_mesh, triangle_edges, vertex_areas, vertex_normals
 
 log = logging.getLogger("usdface")
 
@@ -277,318 +280,6 @@ class TissueModel:
                 "reducedDepthVertices": int((self.depth < 1).sum())}
 
 
-# -- mesh checks ----------------------------------------------------------------------------------
-
-def length_scale_of(mesh: FaceMesh) -> float:
-    """1 cm in the mesh's units; for unknown units, the bounding-box diagonal / 25 (a face ~25 cm)."""
-    if mesh.units in METERS_PER_UNIT:
-        return 0.01 / METERS_PER_UNIT[mesh.units]
-    return float(np.linalg.norm(np.ptp(mesh.points, axis=0))) / 25.0
-
-
-def _mesh_where(mesh: FaceMesh) -> str:
-    return mesh.source or repr(mesh.name)
-
-
-def _polygon_sides(mesh: FaceMesh):
-    counts, starts, idx = mesh.face_vertex_counts, mesh.face_starts, mesh.face_vertex_indices
-    nxt = np.arange(1, idx.size + 1)
-    nxt[starts + counts - 1] = starts
-    face = np.repeat(np.arange(counts.size), counts)
-    return idx, idx[nxt], face
-
-
-def inconsistent_faces(mesh: FaceMesh) -> tuple[np.ndarray, np.ndarray]:
-    """Polygons whose winding disagrees with their neighbours.
-
-    Two polygons sharing an edge are consistently wound when they run along it in opposite
-    directions. Within each connected patch the polygons are split into two classes of equal
-    winding; the smaller class is reported (it is the one to re-wind).
-
-    Parameters
-    ----------
-    mesh : FaceMesh
-
-    Returns
-    -------
-    flip : ndarray (K,) int64
-        Polygons to re-wind (sorted).
-    non_orientable : ndarray (J,) int64
-        Polygons of patches that cannot be wound consistently (Möbius-like), empty normally.
-
-    Raises
-    ------
-    MeshError
-        The mesh has an edge shared by more than two polygons.
-    """
-    frm, to, face = _polygon_sides(mesh)
-    n = np.int64(mesh.n_points)
-    lo, hi = np.minimum(frm, to), np.maximum(frm, to)
-    key = lo * n + hi
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    uniq, start, cnt = np.unique(ks, return_index=True, return_counts=True)
-    if (cnt > 2).any():
-        bad = uniq[cnt > 2][:10]
-        raise MeshError(f"mesh {_mesh_where(mesh)}: {int((cnt > 2).sum())} edge(s) shared by more than two faces "
-                        f"(non-manifold), e.g. vertex pairs {[(int(b // n), int(b % n)) for b in bad]}")
-    pair = start[cnt == 2]
-    s1, s2 = order[pair], order[pair + 1]
-    same_dir = frm[s1] == frm[s2]  # both run a->b: inconsistent winding
-    f1, f2 = face[s1], face[s2]
-    p = mesh.n_faces
-    # doubled graph: node (f, s) = face f with winding state s; consistent pairs link equal states
-    a = np.concatenate([f1, f1 + p])
-    b = np.concatenate([np.where(same_dir, f2 + p, f2), np.where(same_dir, f2, f2 + p)])
-    g = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(2 * p, 2 * p))
-    _, lab = connected_components(g, directed=False)
-    non_orientable = np.flatnonzero(lab[:p] == lab[p:])
-    # faces in the same patch: same label for state 0 -> same class
-    base = np.minimum(lab[:p], lab[p:])
-    cls = lab[:p] == base
-    flip = []
-    for comp in np.unique(base):
-        members = np.flatnonzero(base == comp)
-        c = cls[members]
-        minority = members[c] if c.sum() < (~c).sum() else members[~c]
-        flip.append(minority)
-    flip = np.sort(np.concatenate(flip)) if flip else np.zeros(0, dtype=np.int64)
-    flip = np.setdiff1d(flip, non_orientable)
-    return flip.astype(np.int64), non_orientable.astype(np.int64)
-
-
-def rewind_faces(mesh: FaceMesh, faces) -> FaceMesh:
-    """``mesh`` with the given polygons' vertex order reversed (v0 kept first: v0 v3 v2 v1).
-
-    Keeping v0 first keeps a quad's fixed v0-v2 diagonal, so the triangulation has the same edges.
-    """
-    faces = np.asarray(faces, dtype=np.int64)
-    if faces.size == 0:
-        return mesh
-    idx = mesh.face_vertex_indices.copy()
-    uv_idx = None if mesh.uv_indices is None else mesh.uv_indices.copy()
-    for f in faces.tolist():  # per flipped polygon (few): not the engine
-        s, c = int(mesh.face_starts[f]), int(mesh.face_vertex_counts[f])
-        sel = np.concatenate([[s], np.arange(s + c - 1, s, -1)])
-        idx[s:s + c] = mesh.face_vertex_indices[sel]
-        if uv_idx is not None:
-            uv_idx[s:s + c] = mesh.uv_indices[sel]
-    return dataclasses.replace(mesh, face_vertex_indices=idx, uv_indices=uv_idx)
-
-
-def _tri_normals(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    p = points
-    return np.cross(p[tris[:, 1]] - p[tris[:, 0]], p[tris[:, 2]] - p[tris[:, 0]])  # length = 2 area
-
-
-def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Angle-weighted unit vertex normals.
-
-    Parameters
-    ----------
-    points : ndarray (N, 3)
-    triangles : ndarray (T, 3) int
-
-    Returns
-    -------
-    ndarray (N, 3) float64
-        Unit normals (zero for unreferenced vertices).
-    """
-    p = np.asarray(points, dtype=np.float64)
-    t = np.asarray(triangles)
-    fn = _tri_normals(p, t)
-    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
-    out = np.zeros_like(p)
-    for c in range(3):
-        e1 = p[t[:, (c + 1) % 3]] - p[t[:, c]]
-        e2 = p[t[:, (c + 2) % 3]] - p[t[:, c]]
-        cosang = np.einsum("ij,ij->i", e1, e2) / np.maximum(np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300)
-        ang = np.arccos(np.clip(cosang, -1.0, 1.0))
-        np.add.at(out, t[:, c], fn * ang[:, None])
-    nrm = np.linalg.norm(out, axis=1, keepdims=True)
-    return np.divide(out, nrm, out=np.zeros_like(out), where=nrm > 0)
-
-
-def vertex_areas(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """(N,) lumped area per vertex (a third of each adjacent triangle's area)."""
-    a = 0.5 * np.linalg.norm(_tri_normals(points, triangles), axis=1)
-    return np.bincount(np.asarray(triangles).ravel(), weights=np.repeat(a / 3.0, 3), minlength=len(points))
-
-
-def prepare_mesh(mesh: FaceMesh, *, orient: str = "fix") -> tuple[FaceMesh, np.ndarray]:
-    """Check a mesh for the tissue model: no zero-area faces, consistent outward winding.
-
-    Parameters
-    ----------
-    mesh : FaceMesh
-    orient : {"fix", "error"}
-        What to do with inconsistently wound polygons.
-
-    Returns
-    -------
-    mesh : FaceMesh
-        Consistently wound, normals pointing away from the mesh's interior (for a face mask:
-        toward the viewer).
-    flipped : ndarray (K,) int64
-        Polygons re-wound (input numbering; all of them when the whole mesh was inside out).
-
-    Raises
-    ------
-    MeshError
-        Zero-area faces, non-manifold edges, a non-orientable patch, or (orient="error")
-        inconsistent winding — each naming the faces.
-    """
-    mesh.check_degenerate()
-    tris = mesh.triangles()
-    a2 = np.linalg.norm(_tri_normals(mesh.points, tris), axis=1)
-    scale = np.ptp(mesh.points, axis=0).max() ** 2
-    bad_tri = np.flatnonzero(a2 <= 1e-12 * scale)
-    if bad_tri.size:  # a polygon with area but a degenerate fan triangle (e.g. a folded quad)
-        faces = np.unique(mesh.triangle_faces()[bad_tri])
-        raise MeshError(f"mesh {_mesh_where(mesh)}: {faces.size} face(s) have a zero-area triangle in their fixed "
-                        f"v0-v2 split, e.g. faces {faces[:10].tolist()}; the tissue model needs a prism per triangle")
-    flip, non_orientable = inconsistent_faces(mesh)
-    if non_orientable.size:
-        raise MeshError(f"mesh {_mesh_where(mesh)}: {non_orientable.size} face(s) form a non-orientable patch, "
-                        f"e.g. faces {non_orientable[:10].tolist()}")
-    if flip.size:
-        if orient == "error":
-            raise MeshError(f"mesh {_mesh_where(mesh)}: {flip.size} face(s) are wound against their neighbours "
-                            f"(inconsistent normals): faces {list_names(flip.tolist(), 20)}")
-        log.warning("mesh %s: re-wound %d face(s) with inconsistent normals: %s", _mesh_where(mesh), flip.size,
-                    list_names(flip.tolist(), 20))
-        mesh = rewind_faces(mesh, flip)
-    # global orientation: normals should point away from the interior (centroid behind a face mask)
-    tris = mesh.triangles()
-    fn = _tri_normals(mesh.points, tris)
-    centre = mesh.points[np.unique(tris)].mean(axis=0)
-    tc = mesh.points[tris].mean(axis=1)
-    if np.einsum("ij,ij->", fn, tc - centre) < 0:
-        log.warning("mesh %s: faces are wound inward; re-winding all of them", _mesh_where(mesh))
-        allf = np.arange(mesh.n_faces)
-        mesh = rewind_faces(mesh, allf)
-        flip = np.setdiff1d(allf, flip)
-    return mesh, flip
-
-
-# -- construction ---------------------------------------------------------------------------------
-
-def triangle_edges(triangles: np.ndarray, n_points: int) -> np.ndarray:
-    """(E, 2) unique undirected edges (a < b) of a triangle list."""
-    t = np.asarray(triangles, dtype=np.int64)
-    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
-    e.sort(axis=1)
-    key = np.unique(e[:, 0] * np.int64(n_points) + e[:, 1])
-    return np.stack([key // n_points, key % n_points], axis=1)
-
-
-def prism_volumes(x: np.ndarray, prisms: np.ndarray) -> np.ndarray:
-    """Signed volume of triangular prisms, split into three tetrahedra.
-
-    Parameters
-    ----------
-    x : ndarray (n, 3)
-        Node positions.
-    prisms : ndarray (P, 6) int
-        Top triangle ``a b c`` (outward, counter-clockwise seen from outside) and the nodes
-        ``a' b' c'`` below them.
-
-    Returns
-    -------
-    ndarray (P,)
-        ``V = V(a,b,c,a') + V(b,c,a',b') + V(c,a',b',c')`` with the sign chosen so that a
-        prism whose bottom lies below its outward top has positive volume.
-    """
-    p = [x[prisms[:, k]] for k in range(6)]
-    return -(_tet(p[0], p[1], p[2], p[3]) + _tet(p[1], p[2], p[3], p[4]) + _tet(p[2], p[3], p[4], p[5]))
-
-
-def _tet(a, b, c, d):
-    return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) / 6.0
-
-
-def prisms_valid(x: np.ndarray, prisms: np.ndarray) -> np.ndarray:
-    """(P,) bool: prism has positive volume and its bottom triangle is not flipped against its top."""
-    top = _tri_normals(x, prisms[:, :3])
-    bottom = _tri_normals(x, prisms[:, 3:])
-    return (prism_volumes(x, prisms) > 0) & (np.einsum("ij,ij->i", top, bottom) > 0)
-
-
-def _tets_signed(x, prisms):
-    p = [x[prisms[:, k]] for k in range(6)]
-    return np.stack([-_tet(p[0], p[1], p[2], p[3]), -_tet(p[1], p[2], p[3], p[4]), -_tet(p[2], p[3], p[4], p[5])], 1)
-
-
-def _sphere_centre(points: np.ndarray) -> np.ndarray:
-    """Least-squares sphere through the points (the skull's rough centre for a face)."""
-    a = np.c_[2.0 * points, np.ones(len(points))]
-    sol = np.linalg.lstsq(a, (points ** 2).sum(axis=1), rcond=None)[0]
-    return sol[:3]
-
-
-def _keep_in_cone(d: np.ndarray, nrm: np.ndarray, min_cos: float) -> np.ndarray:
-    """Unit directions turned toward ``nrm`` until their cosine with it is at least ``min_cos``."""
-    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
-    c = np.einsum("ij,ij->i", d, nrm)
-    low = c < min_cos
-    if low.any():
-        tang = d[low] - c[low, None] * nrm[low]
-        tn = np.linalg.norm(tang, axis=1, keepdims=True)
-        tang = np.divide(tang, tn, out=np.zeros_like(tang), where=tn > 1e-12)
-        s = np.sqrt(1.0 - min_cos ** 2)
-        d[low] = min_cos * nrm[low] + s * tang
-    return d
-
-
-def _offset_field(mesh, pts, tris, edges, nrm, used, prisms, d_f, d_b, min_fraction, max_inverted):
-    """Directions and per-vertex depth scales giving non-inverted prisms.
-
-    Start from the vertex normal smoothed over the surface, blended half-and-half with the direction
-    toward the best-fit sphere's centre (offset rays then cannot cross under the surface); where a
-    prism is still inverted (lip and eyelid rims rolled into the holes), turn its vertices' directions
-    toward their own normals and shrink their depth, down to ``min_fraction`` of the request.
-    """
-    n = len(pts)
-    adj = sp.coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
-                        shape=(n, n)).tocsr()
-    smooth = nrm.copy()
-    for _ in range(20):
-        smooth = smooth + adj @ smooth
-        smooth /= np.maximum(np.linalg.norm(smooth, axis=1, keepdims=True), 1e-300)
-    centre = _sphere_centre(pts[used])
-    radial = pts - centre
-    radial /= np.maximum(np.linalg.norm(radial, axis=1, keepdims=True), 1e-300)
-    direction = _keep_in_cone(smooth + radial, nrm, 0.5)
-    direction[~used] = 0.0
-    depth = np.ones(n)
-    t = len(tris)
-    deg = np.asarray(adj.sum(axis=1)).ravel()
-    for it in range(200):
-        rest = np.concatenate([pts, pts - (d_f * depth)[:, None] * direction,
-                               pts - ((d_f + d_b) * depth)[:, None] * direction])
-        bad = np.flatnonzero(~prisms_valid(rest, prisms))
-        if bad.size == 0:
-            return direction, depth, np.zeros(0, dtype=np.int64)
-        verts = np.unique(tris[bad % t].ravel())
-        if depth[verts].min() <= min_fraction + 1e-12:
-            faces = np.unique(mesh.triangle_faces()[bad % t])
-            if faces.size > max_inverted * mesh.n_faces:
-                raise MeshError(
-                    f"mesh {_mesh_where(mesh)}: {faces.size} face(s) give inverted tissue prisms even at "
-                    f"{min_fraction:.0%} of the depth (folded or very sharply curved), e.g. faces "
-                    f"{faces[:10].tolist()}; smooth the mesh there or lower fascia_depth/bone_depth")
-            log.info("mesh %s: %d face(s) are folded (their tissue prisms are inverted at rest; they keep "
-                     "that shape): %s", _mesh_where(mesh), faces.size, list_names(faces.tolist(), 20))
-            return direction, depth, faces
-        # smooth the directions around the bad prisms (shear comes from diverging directions) ...
-        nb = direction + (adj @ direction) / np.maximum(deg, 1)[:, None]
-        nb = _keep_in_cone(nb, nrm, 0.5)
-        direction[verts] = nb[verts]
-        # ... and thin the tissue there, smoothly (a depth step also shears prisms)
-        depth[verts] = np.maximum(depth[verts] * 0.9, min_fraction)
-        depth = np.minimum(depth, 0.5 * (depth + (adj @ depth) / np.maximum(deg, 1)) + 0.5 * depth)
-    raise MeshError(f"mesh {_mesh_where(mesh)}: could not build non-inverted tissue prisms")
-
 
 def _attachment(mesh, pts, tris, regions, L, opts) -> np.ndarray:
     """(N,) factor on the deep springs: ``free_attachment`` at the mouth and eye loops, rising smoothly
@@ -649,7 +340,7 @@ def build_tissue_model(mesh: FaceMesh, options: TissueOptions | None = None, *, 
     used = np.zeros(n, dtype=bool)
     used[tris.ravel()] = True
     if not used.all():
-        log.info("mesh %s: %d vertices belong to no face; they stay still", _mesh_where(mesh), int((~used).sum()))
+        log.info("mesh %s: %d vertices belong to no face; they stay still", mesh_where(mesh), int((~used).sum()))
     pts = mesh.points
     nrm = vertex_normals(pts, tris)
     nrm[~used] = 0.0
@@ -661,8 +352,9 @@ def build_tissue_model(mesh: FaceMesh, options: TissueOptions | None = None, *, 
         np.concatenate([tris, tris + n], axis=1),
         np.concatenate([tris + n, tris + 2 * n], axis=1),
     ])
-    direction, depth, folded = _offset_field(mesh, pts, tris, e, nrm, used, prisms, d_f, d_b,
-                                             opts.min_depth_fraction, opts.max_folded_fraction)
+    direction, depth, folded = offset_field(mesh, tris, e, nrm, used, prisms, depths=(d_f, d_b),
+                                            min_fraction=opts.min_depth_fraction,
+                                            max_inverted=opts.max_folded_fraction)
     rest = np.concatenate([pts, pts - (d_f * depth)[:, None] * direction,
                            pts - ((d_f + d_b) * depth)[:, None] * direction])
 

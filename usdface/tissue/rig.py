@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import InputError, MeshError, list_names
 from ..model.mesh import FaceMesh
-from .model import length_scale_of, vertex_normals
+from .surface import length_scale_of, vertex_normals
 from .muscles import Jaw, Muscle
 
 #: landmark name -> marker names (AnimFace layout) that give it when markers are known
@@ -370,7 +370,7 @@ def _lip_side(mesh: FaceMesh, loop: np.ndarray, loc: np.ndarray):
     import scipy.sparse as sp
     from scipy.sparse.csgraph import dijkstra
 
-    from .model import triangle_edges
+    from .surface import triangle_edges
 
     lx = loc[loop, 0]
     a, b = int(np.argmin(lx)), int(np.argmax(lx))

@@ -12,21 +12,24 @@ Rig layer (``usdface muscles``, .usda)::
 Animation layer (``usdface simulate`` / ``fit-muscles``, .usdc): sublayers the rig and the mesh
 layer (so it opens alone as the animated face), then ``over``s with time-sampled points and extent
 on the mesh prim, ``usdface:muscle:contraction`` samples on each muscle prim and
-``usdface:jaw:opening`` samples on /Face/Muscles, showing which muscles drive the face.
+``usdface:jaw:opening`` samples on /Face/Muscles, showing which muscles drive the face. Beside it,
+``<stem>_shot.usda`` (:func:`write_tissue_shot`) is the shot stage to open.
 """
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..errors import InputError
+from ..tissue.animate import ControlSamples
 from ..tissue.muscles import Muscle
 from ..tissue.rig import MuscleRig
 from ..units import scale_between
-from .layers import (add_sublayer, checkpoint, open_stage, output_layer, set_provenance, set_stage_metadata,
-                     stage_units)
+from .layers import (USD_SUFFIXES, add_sublayer, checkpoint, is_in_memory, open_stage, output_layer, set_provenance,
+                     set_stage_metadata, stage_units)
 from .mesh_layer import GEOM_PRIM, find_mesh
 from .schemas import require_registered
 
@@ -35,6 +38,11 @@ MUSCLES_SCOPE = "Muscles"
 NS = "usdface:muscle"
 _LINEAR_COLOR = (0.85, 0.2, 0.2)
 _SPHINCTER_COLOR = (0.95, 0.55, 0.15)
+
+
+def _is_usd(source) -> bool:
+    """A USD layer (a file with a USD suffix, or in memory), not a mesh file."""
+    return source is not None and (is_in_memory(source) or str(source).lower().endswith(USD_SUFFIXES))
 
 
 def _vec3d(v):
@@ -67,7 +75,7 @@ def write_rig_layer(path, rig: MuscleRig, *, mesh_path=None, mesh_prim_path: str
     require_registered()
     target = Sdf.Path(mesh_prim_path)
     units = rig.units
-    if mesh_path is not None and str(mesh_path).lower().endswith((".usd", ".usda", ".usdc", ".usdz")):
+    if _is_usd(mesh_path):
         mesh_stage = open_stage(mesh_path, what="mesh")
         target = find_mesh(mesh_stage).GetPath()
         dp = mesh_stage.GetDefaultPrim()
@@ -200,64 +208,69 @@ def rig_prim_paths(path, *, stage: Usd.Stage | None = None) -> tuple[str, dict]:
     return str(scope.GetPath()), {p.GetName(): str(p.GetPath()) for p in scope.GetChildren() if p.HasAPI(MUSCLE_API)}
 
 
-def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, rest_points: np.ndarray, start: float,
-                                 rate: float, n_frames: int, units, muscle_names, contractions: np.ndarray,
-                                 jaw: np.ndarray, prov: dict, time_codes=None, progress=None, mesh=None) -> str:
+def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, mesh, controls: ControlSamples, prov: dict,
+                                 progress=None) -> str:
     """Stream a simulated animation into a .usdc layer (saved after every chunk).
 
     The layer stands alone: it sublayers the rig layer (muscles) and the mesh layer it animates
-    (or, for a mesh that is not a USD layer, defines the mesh from ``mesh``, a FaceMesh), then
-    holds the time-sampled points and contractions as overs.
+    (or, for a mesh that is not a USD layer, defines the mesh from ``mesh``), then holds the
+    time-sampled points and contractions as overs.
 
     Parameters
     ----------
+    path : path, Sdf.Layer or Usd.Stage
+        The layer to write (in memory: authored there, all or nothing).
     chunks : iterable of (slice, ndarray (f, N, 3))
         Skin points (absolute, mesh units) for frames ``slice`` (0-based).
-    contractions : ndarray (F, M)
-        Per frame, the contraction of each muscle of ``muscle_names``; written as time samples.
-    jaw : ndarray (F,)
-        Jaw opening per frame.
-    time_codes : ndarray (F,), optional
-        Time code of each frame (default ``start + f``); ``rate`` is the layer's timeCodesPerSecond.
+    mesh_path, rig_path : path, Sdf.Layer or Usd.Stage
+        The mesh (layer or mesh file) and the rig layer the animation is made of.
+    mesh : FaceMesh
+        The face (its units are the layer's; its points count is checked against the mesh layer).
+    controls : ControlSamples
+        Time code of each frame, the layer's rate (timeCodesPerSecond), and per frame the
+        contraction of each muscle and the jaw opening, written as time samples.
+    prov : dict
+        Provenance (:func:`usdface.usd.layers.provenance`).
+    progress : object with ``update(n)``, optional
 
     The chunks are consumed inside the atomic write: if computing them raises (e.g. a diverging
     simulation), nothing is left at ``path``.
     """
     require_registered()
-    mesh_stage = open_stage(mesh_path, what="mesh") if str(mesh_path).lower().endswith(
-        (".usd", ".usda", ".usdc", ".usdz")) else None
+    mesh_stage = open_stage(mesh_path, what="mesh") if _is_usd(mesh_path) else None
     mesh_prim_path = find_mesh(mesh_stage).GetPath() if mesh_stage is not None else Sdf.Path(GEOM_PRIM)
     default_prim = (mesh_stage.GetDefaultPrim().GetName() if mesh_stage is not None and mesh_stage.GetDefaultPrim()
                     else "Face")
     scope_path, muscle_paths = rig_prim_paths(rig_path)
-    rest = np.asarray(rest_points, dtype=np.float32)
+    n_points = mesh.n_points
     if mesh_stage is not None:
         pts = UsdGeom.Mesh(mesh_stage.GetPrimAtPath(mesh_prim_path)).GetPointsAttr().Get()
-        if pts is not None and len(pts) != rest.shape[0]:
-            raise InputError(f"animation {path}: {rest.shape[0]} simulated points but mesh {mesh_path} has {len(pts)}")
-    codes = start + np.arange(n_frames, dtype=np.float64) if time_codes is None else \
-        np.asarray(time_codes, dtype=np.float64)
-    if codes.size != n_frames:
-        raise InputError(f"animation {path}: {codes.size} time codes for {n_frames} frames")
+        if pts is not None and len(pts) != n_points:
+            raise InputError(f"animation {path}: {n_points} simulated points but mesh {mesh_path} has {len(pts)}")
+    codes = np.asarray(controls.time_codes, dtype=np.float64)
+    n_frames = codes.size
+    contractions, jaw = controls.contractions, controls.jaw
+    if len(contractions) != n_frames or len(jaw) != n_frames:
+        raise InputError(f"animation {path}: {n_frames} time codes for {len(contractions)} frames of contractions "
+                         f"and {len(jaw)} of jaw opening")
     with output_layer(path) as stage:
         add_sublayer(stage, rig_path, path)
         if mesh_stage is not None:
             add_sublayer(stage, mesh_path, path)
-        elif mesh is not None:
+        else:
             from .mesh_layer import author_mesh
 
             author_mesh(stage, mesh, str(mesh_prim_path))
-        set_stage_metadata(stage, units=units, default_prim=default_prim, rate=rate, start=float(codes[0]),
-                           end=float(codes[-1]))
-        prim = stage.OverridePrim(mesh_prim_path)
-        mesh = UsdGeom.Mesh(prim)
-        mesh.CreateNormalsAttr().Block()  # normals would go stale under animated points
-        points_attr = mesh.CreatePointsAttr()
-        extent_attr = mesh.CreateExtentAttr()
+        set_stage_metadata(stage, units=mesh.units, default_prim=default_prim, rate=controls.rate,
+                           start=float(codes[0]), end=float(codes[-1]))
+        geom = UsdGeom.Mesh(stage.OverridePrim(mesh_prim_path))
+        geom.CreateNormalsAttr().Block()  # normals would go stale under animated points
+        points_attr = geom.CreatePointsAttr()
+        extent_attr = geom.CreateExtentAttr()
         scope = stage.OverridePrim(scope_path)
         jaw_attr = scope.CreateAttribute("usdface:jaw:opening", Sdf.ValueTypeNames.Float, custom=True)
         c_attrs = []
-        for name in muscle_names:
+        for name in controls.muscle_names:
             if name not in muscle_paths:
                 raise InputError(f"rig {rig_path}: no muscle prim {name!r}")
             p = stage.OverridePrim(muscle_paths[name])
@@ -281,6 +294,26 @@ def write_tissue_animation_layer(path, chunks, *, mesh_path, rig_path, rest_poin
             raise InputError(f"animation {path}: {written} frames computed, expected {n_frames}")
         set_provenance(stage, prov)
     return str(path)
+
+
+def shot_path_for(output) -> Path:
+    """The shot stage written beside a simulate / fit-muscles layer: ``<stem>_shot.usda``."""
+    out = Path(output)
+    return out.with_name(f"{out.stem}_shot.usda")
+
+
+def write_tissue_shot(output, layers, *, rate, start, end, units, stabilized_capture=False) -> str | None:
+    """Write the shot stage beside the animation layer ``output``: a .usda composing ``layers``
+    (strongest first; layers held in memory are left out: they have no file to point to).
+    Returns its path, or None when ``output`` is in memory (no folder to write beside)."""
+    from .analysis_layer import write_shot_stage
+
+    if is_in_memory(output):
+        return None
+    shot = shot_path_for(output)
+    write_shot_stage(shot, layers=[layer for layer in layers if not is_in_memory(layer)], rate=rate, start=start,
+                     end=end, units=units, stabilized_capture=stabilized_capture)
+    return str(shot)
 
 
 def read_animation_points(path, *, stage: Usd.Stage | None = None) -> tuple[np.ndarray, np.ndarray]:
