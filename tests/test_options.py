@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from usdface.cli import build_parser
-from usdface.cliargs import options_from_args
+from usdface.console.arguments import options_from_args
 from usdface.errors import OptionError
 from usdface.options import CaptureOptions, RunOptions, TransferOptions, option_fields
 
