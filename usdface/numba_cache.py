@@ -23,7 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
-__all__ = ["AVAILABLE", "CACHE", "cache_dir", "compile_report", "configure", "is_cached", "njit", "notice_compiling"]
+__all__ = ["AVAILABLE", "CACHE", "cache_dir", "compile_report", "configure", "is_cached", "njit", "notice_compiling",
+           "reset_compile_report"]
 
 _PACKAGE = Path(__file__).resolve().parent
 _configured: dict = {}
@@ -179,6 +180,11 @@ def _announce(what: str, dispatcher) -> None:
     where = cache_dir(dispatcher)
     tail = f"; cached in {where} for later runs" if where else ""
     print(f"usdface: compiling {what} (first run only){tail}", file=sys.stderr, flush=True)
+
+
+def reset_compile_report() -> None:
+    """Start counting compiles afresh (each ``usdface`` command reports its own)."""
+    _compiled.update(kernels=0, seconds=0.0, groups=[])
 
 
 def compile_report() -> str | None:

@@ -126,14 +126,17 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = lambda message, category, *rest, **kw: log.warning("%s", message)
     processor = args._processor
     name = f"usdface {processor.path[0]}"  # as 0.2 named a sub-command's errors (usdface landmarks: error: ...)
-    try:
-        return _run(args, processor, name, parser)
-    finally:
-        # the kernels a first run compiled, and how long they took (only where numba was loaded)
-        kernels = sys.modules.get("usdface.numba_cache")
-        report = kernels.compile_report() if kernels is not None else None
-        if report and not args.quiet:
-            print(report, file=sys.stderr, flush=True)
+    kernels = sys.modules.get("usdface.numba_cache")
+    if kernels is not None:  # main called twice in one process (tests, scripts) reports each run's own
+        kernels.reset_compile_report()
+    code = _run(args, processor, name, parser)
+    # the kernels a first run compiled, and how long they took (only where numba was loaded); a
+    # failed command keeps its one error line alone
+    kernels = sys.modules.get("usdface.numba_cache")
+    report = kernels.compile_report() if kernels is not None and code == 0 else None
+    if report and not args.quiet:
+        print(report, file=sys.stderr, flush=True)
+    return code
 
 
 def _run(args, processor, name: str, parser) -> int:

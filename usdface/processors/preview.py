@@ -46,13 +46,14 @@ def preview(file, *, options: PreviewOptions, output) -> Result:
     """Render ``file`` at ``options.frame`` (or a contact sheet of ``options.frames``) to the PNG ``output``."""
     from ..preview import contact_sheet, fit_camera, write_png
     from ..usd.evaluate import FaceEvaluator
-    from ..usd.layers import open_stage
+    from ..usd.layers import is_in_memory, open_stage
     from ..usd.scene import read_scene_frame
 
     path = file
     frame, frames, view, size, color = options.frame, options.frames, options.view, options.size, options.color
     reference, labels = options.reference, options.labels
-    refuse_overwriting_inputs({"-o": output}, {"file": path, "--reference": reference})
+    files = {"file": path, "--reference": reference}
+    refuse_overwriting_inputs({"-o": output}, {k: v for k, v in files.items() if not is_in_memory(v)})
     if not str(output).lower().endswith(".png"):
         raise OptionError(f"-o {output}: expected a .png file")
     if color == "error" and reference is None:

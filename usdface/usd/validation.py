@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Usd, UsdGeom, UsdValidation
 
+from .diagnostics import trapped
 from .layers import open_stage
 
 KEYWORD = "usdface"
@@ -294,7 +295,11 @@ def check_layer(path: str | os.PathLike) -> list[Finding]:
     validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
     image_space = _is_image_track_layer(stage)
     findings = []
-    for error in UsdValidation.ValidationContext(validators).Validate(stage):
+    # the validators' own warnings on stderr (an in-memory layer's anon: references) repeat what
+    # their findings say
+    with trapped():
+        errors = UsdValidation.ValidationContext(validators).Validate(stage)
+    for error in errors:
         if error.HasNoError():
             continue
         sites = error.GetSites()
