@@ -1,4 +1,4 @@
-"""usdface.mesh.binding: layout and automatic marker binding with the real AnimFace Jaw take."""
+"""usdface.mesh.binding, auto_binding, surface_points and symmetry: layout and automatic marker binding with the real AnimFace Jaw take."""
 from __future__ import annotations
 
 import json
@@ -10,14 +10,10 @@ from usdface.model.capture import Capture
 from usdface.capture.rigid import from_matrix, to_matrix
 from usdface.errors import MarkerError, MeshError, OptionError
 from usdface.io.meshes import read_mesh
-from usdface.mesh.binding import (
-    align_to_surface,
-    alignment_residuals,
-    bind_auto,
-    bind_layout,
-    mirror_plane,
-    project_to_surface,
-)
+from usdface.mesh.auto_binding import align_to_surface, bind_auto
+from usdface.mesh.binding import alignment_residuals, bind_layout
+from usdface.mesh.surface_points import project_to_surface
+from usdface.mesh.symmetry import mirror_plane
 from usdface.mesh.closest import SurfaceLocator
 from usdface.mesh.layout import Layout, LayoutMarker, read_layout
 from usdface.model.mesh import Binding

@@ -8,7 +8,7 @@ import pytest
 
 from usdface.errors import FormatError, InputError, MeshError
 from usdface.io.meshes import read_mesh
-from usdface.mesh.binding import project_to_surface
+from usdface.mesh.surface_points import project_to_surface
 from usdface.mesh.layout import LAYOUT_FORMAT, Layout, LayoutMarker, read_layout, write_layout
 from usdface.mesh.topology import find_hole_regions
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from usdface.mesh.binding import project_to_surface
+from usdface.mesh.surface_points import project_to_surface
 from usdface.mesh.layout import read_layout
 from usdface.tissue.fit import (FitParameters, LinearResponse, bound_points, fit_frames, fit_sequence, linear_response,
                                 marker_error, simulate_controls)

@@ -13,7 +13,7 @@ A pair ``<stem>Left`` / ``<stem>Right`` gets the prior ``w_Left ~ w_Right`` only
    and coupling them would cancel both, so they never get the prior.
 
 The mirror vertex map comes from the neutral: its symmetry plane
-(:func:`usdface.mesh.binding.mirror_plane`, normal near +X), each vertex reflected and matched to
+(:func:`usdface.mesh.symmetry.mirror_plane`, normal near +X), each vertex reflected and matched to
 its nearest vertex. A neutral that is not symmetric (median mismatch above
 :data:`ASYMMETRY_TOLERANCE` of the mean edge length) gets no prior at all.
 """
@@ -124,7 +124,7 @@ def find_mirror_pairs(rig: BlendShapeRig, *, mirror_tolerance: float = MIRROR_TO
     """
     from scipy.spatial import cKDTree
 
-    from ..mesh.binding import mirror_plane
+    from ..mesh.symmetry import mirror_plane
 
     p = rig.neutral
     normal, point, _ = mirror_plane(p, normal=(1.0, 0.0, 0.0))

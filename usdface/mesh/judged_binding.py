@@ -12,7 +12,8 @@ def bind_and_judge(mesh, capture, *, layout=None, retarget="displacement", allow
     residuals are the layout-fit residuals of the neutral markers for a layout binding, the surface
     residuals for an automatic one. Raises PlausibilityError unless ``allow`` names the finding."""
     from ..capture.plausibility import parse_allow, report
-    from .binding import alignment_residuals, bind_auto, bind_layout
+    from .auto_binding import bind_auto
+    from .binding import alignment_residuals, bind_layout
     from .layout import read_layout
 
     allow = parse_allow(allow)

@@ -3,7 +3,7 @@ layout's markers project onto the surface (the evaluation against ground-truth s
 blend-shape experiments bind markers this way)."""
 from __future__ import annotations
 
-from .binding import project_to_surface
+from .surface_points import project_to_surface
 from .layout import Layout
 from ..model.mesh import Binding, FaceMesh
 

@@ -115,7 +115,7 @@ def _bound_surface(mesh, binding, layout):
 
         b = read_binding(open_stage(binding, what="binding"), source=str(binding))
         return list(b.names), b.triangle_vertices, b.barycentrics, str(binding)
-    from ..mesh.binding import project_to_surface
+    from ..mesh.surface_points import project_to_surface
     from ..mesh.layout import read_layout
 
     lay = read_layout(layout)
