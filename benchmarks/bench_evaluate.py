@@ -107,7 +107,7 @@ def bare_usdskel(path: Path) -> None:
 
 
 def walk(path: Path) -> None:
-    from usdface.usd.evaluate import FaceEvaluator
+    from usdface.usd.face_evaluator import FaceEvaluator
 
     ev = FaceEvaluator.open(path)
     for _times, _points in ev.iter_points():

@@ -59,7 +59,7 @@ def main() -> int:
 
     import usdface  # noqa: F401
     from usdface.usd.capture_layer import read_capture_layer
-    from usdface.usd.evaluate import FaceEvaluator
+    from usdface.usd.face_evaluator import FaceEvaluator
 
     out = Path(args.outdir)
     cache_ev = FaceEvaluator.open(out / "shot.usda") if (out / "anim.usdc").exists() else None

@@ -44,7 +44,7 @@ def _row(label, values):
 def main(argv=None) -> int:
     from usdface.blendshape.rig import BlendShapeRig, marker_basis
     from usdface.blendshape.solver import CurveSolver
-    from usdface.blendshape.transfer import copy_through_topology
+    from usdface.blendshape.rig_transfer import copy_through_topology
     from usdface.evaluation.quality import REGION_NAMES, TransferConfig, TransferSetup, select_shapes, shape_errors
     from usdface.io.meshes import read_mesh
     from usdface.mesh.layout import read_layout

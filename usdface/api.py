@@ -81,14 +81,14 @@ def new_stage(*layers):
 
 def evaluator(source, *, mesh: str | None = None):
     """The animated face of any deliverable (file path, layer or stage): a
-    :class:`usdface.usd.evaluate.FaceEvaluator` giving world- or mesh-space points at any time
+    :class:`usdface.usd.face_evaluator.FaceEvaluator` giving world- or mesh-space points at any time
     code, whatever moves the face (point caches, UsdSkel skinning and blend shapes, the head
     motion on /Face)::
 
         ev = api.evaluator("out/jaw/shot_skel.usda")
         points = ev.points(441)                   # (N, 3), world space, the stage's units
     """
-    from .usd.evaluate import FaceEvaluator
+    from .usd.face_evaluator import FaceEvaluator
     from .usd.layers import describe, open_stage
 
     return FaceEvaluator(open_stage(source, what="file"), mesh=mesh, source=describe(source))

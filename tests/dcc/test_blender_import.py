@@ -14,7 +14,7 @@ import pytest
 from pxr import Usd, UsdGeom
 
 from usdface.usd.capture_layer import read_capture_layer
-from usdface.usd.evaluate import FaceEvaluator
+from usdface.usd.face_evaluator import FaceEvaluator
 
 POINTS_TOL = 0.01   # cm: a point cache must play exactly (float32 in metres)
 REST_TOL = 0.01     # cm: the skeleton shot's rest pose is the mesh

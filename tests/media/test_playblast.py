@@ -100,7 +100,7 @@ def test_default_playblast_of_the_main_job(shots, cli, tmp_path):
 
 def test_skeleton_shot_is_skinned_by_usdskel(shots, cli, tmp_path):
     """A skeleton shot plays its skinning (UsdSkel evaluates it through the one reader,
-    usdface.usd.evaluate.FaceEvaluator), not a still face."""
+    usdface.usd.face_evaluator.FaceEvaluator), not a still face."""
     from usdface.usd.playback import ShotReader
 
     shot = shots["hybrid"] / "shot_skel.usda"

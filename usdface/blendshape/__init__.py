@@ -10,7 +10,7 @@
 - :mod:`~usdface.blendshape.corrective` — the rig's pose plus the RBF transfer of its residual;
 - :mod:`~usdface.blendshape.curves` — resampling to film rates, key reduction;
 - :mod:`~usdface.blendshape.csvio` — the curves CSV and the Live Link Face CSV;
-- :mod:`~usdface.blendshape.transfer` — a generic rig carried onto a face without one;
+- :mod:`~usdface.blendshape.rig_transfer` — a generic rig carried onto a face without one;
 - :mod:`~usdface.blendshape.synthetic` — takes with exact truth (tests, benchmarks).
 
 USD input and output live in :mod:`usdface.usd.blendshape_layer`, :mod:`usdface.usd.rig_inputs`

@@ -32,7 +32,7 @@ DEFAULT_RELAXATION = 1.8
 DEFAULT_EXCLUDE = ("eyeLook*", "tongueOut")
 #: the delivery rates ``--fps`` offers (any positive rate is accepted by the functions)
 DELIVERY_RATES = (24.0, 25.0, 30.0)
-#: how `shapes transfer` carries each shape onto the registered generic (:mod:`usdface.blendshape.transfer`)
+#: how `shapes transfer` carries each shape onto the registered generic (:mod:`usdface.blendshape.rig_transfer`)
 RIG_TRANSFER_METHODS = ("displacement", "deformation")
 DEFAULT_RIG_TRANSFER = "displacement"
 

@@ -45,7 +45,7 @@ def _render_one(scene, *, camera, color, reference_points, labels, title, scalar
 def preview(file, *, options: PreviewOptions, output) -> Result:
     """Render ``file`` at ``options.frame`` (or a contact sheet of ``options.frames``) to the PNG ``output``."""
     from ..preview import contact_sheet, fit_camera, write_png
-    from ..usd.evaluate import FaceEvaluator
+    from ..usd.face_evaluator import FaceEvaluator
     from ..usd.layers import is_in_memory, open_stage
     from ..usd.scene import read_scene_frame
 

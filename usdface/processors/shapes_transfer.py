@@ -3,7 +3,7 @@
 The generic face is registered onto the target with ``usdface register``'s algorithm
 (:class:`usdface.scan.register.GenericRegistration`: similarity, thin-plate warp, closest-point
 projection; the target's topology is never used), then every shape is transferred
-(:mod:`usdface.blendshape.transfer`). The output is a rig layer (mesh, BlendShape prims, a
+(:mod:`usdface.blendshape.rig_transfer`). The output is a rig layer (mesh, BlendShape prims, a
 skeleton binding, no animation) that ``usdface solve --mesh RIG.usdc`` takes as it is.
 
 The default generic is the MakeHuman rig shipped in ``usdface/resources/generic`` (the face mesh, its
@@ -45,7 +45,7 @@ def shapes_transfer(target, landmarks, *, options: ShapesTransferOptions, output
     output : path (or layer)
         The rig layer (.usdc/.usda).
     """
-    from ..blendshape.transfer import transfer_rig
+    from ..blendshape.rig_transfer import transfer_rig
     from ..mesh.layout import read_layout
     from ..mesh.topology import find_hole_regions
     from ..scan.landmarks import FACE_LANDMARKS

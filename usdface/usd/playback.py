@@ -1,5 +1,5 @@
 """A shot as playblasts and reports play it: frame by frame over its whole-frame range, with a name
-for burn-ins, built on the one reader of a composed shot (:class:`usdface.usd.evaluate.FaceEvaluator`:
+for burn-ins, built on the one reader of a composed shot (:class:`usdface.usd.face_evaluator.FaceEvaluator`:
 time-sampled points, UsdSkel skinning and blend shapes, ancestor transforms such as the head motion
 on /Face, the capture markers, the binding). Nothing here evaluates animation itself.
 """
@@ -14,7 +14,7 @@ from pxr import Usd, UsdGeom, UsdSkel
 
 from ..errors import InputError
 from ..model.mesh import Region
-from .evaluate import FaceEvaluator, remove_head_motion
+from .face_evaluator import FaceEvaluator, remove_head_motion
 from .layers import open_stage
 from .mesh_layer import find_mesh
 

@@ -1,5 +1,5 @@
 """What a composed stage shows at one time code, for previews: one frame of the one reader of a
-composed shot (:class:`usdface.usd.evaluate.FaceEvaluator`)."""
+composed shot (:class:`usdface.usd.face_evaluator.FaceEvaluator`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -9,7 +9,7 @@ from pxr import Usd
 
 from ..errors import InputError
 from ..model.mesh import FaceMesh, Region
-from .evaluate import FaceEvaluator
+from .face_evaluator import FaceEvaluator
 from .layers import open_stage
 from .mesh_layer import mesh_from_prim
 
@@ -36,7 +36,7 @@ def read_scene_frame(path, *, time: float | None = None, stage: Usd.Stage | None
     """The face mesh (points at ``time``, deformed as USD composes them: point cache, UsdSkel
     skinning and blend shapes, ancestor transforms), regions, binding and capture markers.
 
-    ``evaluator``: a :class:`~usdface.usd.evaluate.FaceEvaluator` of the stage, to reuse for
+    ``evaluator``: a :class:`~usdface.usd.face_evaluator.FaceEvaluator` of the stage, to reuse for
     many frames (built from ``stage`` or ``path`` otherwise).
     """
     if evaluator is None:

@@ -1,6 +1,6 @@
 """How UsdSkel deforms one mesh: blend shapes, then linear / dual-quaternion or rigid skinning.
 
-The deformation half of the face reader (:class:`usdface.usd.evaluate.FaceEvaluator`), through
+The deformation half of the face reader (:class:`usdface.usd.face_evaluator.FaceEvaluator`), through
 UsdSkel itself (``UsdSkel.Cache``, ``SkeletonQuery.ComputeSkinningTransforms``,
 ``BlendShapeQuery``, ``UsdSkel.SkinPoints``): a mesh is skinned only under a ``SkelRoot`` with a
 bound Skeleton that has a bind pose, blend shapes apply only when the Skeleton's animation has

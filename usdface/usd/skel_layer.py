@@ -185,7 +185,7 @@ def write_skel_layer(path, rig, skin, *, mesh_path, rate: float, start: float, p
 def skinned_points(path, *, times=None, stage: Usd.Stage | None = None,
                    space: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
     """Deform the face mesh of a skeleton layer with UsdSkel: blend shapes, then skinning
-    (:class:`usdface.usd.evaluate.FaceEvaluator`: ``UsdSkel.BlendShapeQuery`` with the
+    (:class:`usdface.usd.face_evaluator.FaceEvaluator`: ``UsdSkel.BlendShapeQuery`` with the
     SkelAnimation's weights, then ``UsdSkel.SkinningQuery.ComputeSkinnedPoints``).
 
     Parameters
@@ -202,7 +202,7 @@ def skinned_points(path, *, times=None, stage: Usd.Stage | None = None,
     times : ndarray (F,)
     points : ndarray (F, N, 3) float64
     """
-    from .evaluate import FaceEvaluator
+    from .face_evaluator import FaceEvaluator
 
     ev = FaceEvaluator(stage, source=str(path)) if stage is not None else FaceEvaluator.open(path, what="skeleton")
     if not ev.skinned:

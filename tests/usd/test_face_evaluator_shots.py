@@ -12,7 +12,7 @@ from pxr import Usd, UsdGeom, UsdSkel
 from scipy.spatial.transform import Rotation
 
 from usdface.cli import main
-from usdface.usd.evaluate import FaceEvaluator
+from usdface.usd.face_evaluator import FaceEvaluator
 
 SKIN_TOL = 1e-4  # cm: float32 skinning of a face ~80 cm from the origin
 

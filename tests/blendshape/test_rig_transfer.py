@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from usdface.blendshape.transfer import copy_through_topology, shapes_on_registration, transfer_rig
+from usdface.blendshape.rig_transfer import copy_through_topology, shapes_on_registration, transfer_rig
 from usdface.cli import main
 from usdface.evaluation.quality import evaluation_regions
 

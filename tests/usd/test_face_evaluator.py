@@ -15,7 +15,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 from scipy.spatial.transform import Rotation
 
 from usdface.errors import InputError, OptionError
-from usdface.usd.evaluate import FaceEvaluator, evaluate_points
+from usdface.usd.face_evaluator import FaceEvaluator, evaluate_points
 
 TOL = 5e-5  # UsdSkel skins in float32 (rigid skinning too): ~5e-7 of the stages' coordinates (< 100 units)
 
