@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import OptionError
-from .capture import UNITS, stabilize_value
 from .distances import DistanceOptions
 from .fields import Options, option
 from .skel import SkelOptions
@@ -129,18 +128,13 @@ class VideoOptions(Options):
 @dataclass(frozen=True)
 class RunOptions(SolveOptions, DistanceOptions, TransferOptions, SkelOptions, VideoOptions):
     """Everything `usdface run` (and a batch shot, and :func:`usdface.api.run`) takes besides its
-    inputs and output folder. Defaults are the main job's."""
+    inputs and output folder. Defaults are the main job's (the capture's, mesh units and
+    stabilisation among them, are `solve`'s: :class:`SolveOptions`)."""
 
     layout: str | None = option(None, flag="--layout", coerce=path, metavar="LAYOUT.json", group="binding",
                                 help="marker layout JSON (usdface-layout/1); required for a video capture")
     auto: Any = option(False, flag="--auto", coerce=auto_value, metavar="N", nargs="?", const=True, group="binding",
                        help="bind automatically; for a video capture, --auto N finds N dots on the first frame")
-    mesh_units: str | None = option(None, flag="--mesh-units", choices=UNITS, group="mesh",
-                                    help="units of the mesh file (OBJ has none: cm)")
-    stabilize: Any = option("auto", flag="--stabilize", coerce=stabilize_value, metavar="auto|M1,M2,...", nargs="?",
-                            const="auto", negate="--no-stabilize", group="capture reading and conditioning",
-                            help="remove rigid head motion: 'auto' picks the most rigid markers, or name them; "
-                                 "--no-stabilize keeps the head motion in the marker displacements")
     output_kind: tuple = option(("points",), flag="--output-kind", coerce=output_kinds_value, metavar="KIND[,KIND]",
                                 group="deliverables",
                                 help="what to deliver, a comma list: points (time-sampled mesh points, anim.usdc), "
