@@ -95,6 +95,52 @@ def test_a_registered_processor_is_a_command_an_api_function_a_batch_step_and_a_
         registry.command_table()
 
 
+def count_vertices(mesh, *, options: GreetOptions, output) -> Result:
+    """A toy deliverable: a layer recording the face's vertex count (written where `run` says)."""
+    from pxr import Sdf, Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(mesh))
+    face = next(p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh))
+    n = len(UsdGeom.Mesh(face).GetPointsAttr().Get())
+    layer = Sdf.Layer.CreateAnonymous("count.usda")
+    out = Usd.Stage.Open(layer)
+    out.OverridePrim(face.GetPath()).CreateAttribute("toy:vertexCount", Sdf.ValueTypeNames.Int).Set(n)
+    layer.Export(str(output))
+    return Result(layers={"output": str(output)}, summary={"vertices": n}, text=[f"wrote {output}"])
+
+
+def test_a_registered_deliverable_joins_run(tmp_path):
+    """A new kind of `run` deliverable is one declaration in the studio's own file: its processor
+    with a Deliverable. `run --output-kind points,vertexcount` then writes its layer and its own
+    shot stage, which composes it over the face."""
+    from pxr import Usd
+
+    from usdface.options.run import DELIVERABLES, Deliverable
+
+    toy = Processor("vertexcount", "record the face's vertex count (a studio's deliverable)",
+                    "A toy deliverable registered by a test.", function=count_vertices, options=GreetOptions,
+                    inputs=(Input("mesh", "the face mesh layer", kind="usd"),),
+                    outputs=(Output("output", "the layer to write", kind="usd"),),
+                    deliverable=Deliverable("vertexcount", "vertexcount.usda", "shot_vertexcount.usda",
+                                            step="vertexcount"))
+    registry.register(toy)
+    try:
+        out = tmp_path / "shot"
+        code = main(["run", "--mesh", str(SA / "meshes" / "makehuman_hm08_face_cm.obj"),
+                     "--capture", str(SA / "capture" / "JawMoCap.ma"),
+                     "--layout", str(SA / "layouts" / "makehuman_hm08_face.layout.json"), "--trim", "0", "20",
+                     "--output-kind", "points,vertexcount", "-o", str(out), "-q"])
+        assert code == 0
+        shot = Usd.Stage.Open(str(out / "shot_vertexcount.usda"))
+        counts = [p.GetAttribute("toy:vertexCount").Get() for p in shot.Traverse()
+                  if p.HasAttribute("toy:vertexCount")]
+        assert counts == [2020]
+        assert main(["check", str(out / "shot_vertexcount.usda"), "-q"]) == 0
+    finally:
+        registry.unregister("vertexcount")
+    assert "vertexcount" not in DELIVERABLES
+
+
 def test_an_unknown_batch_step_names_the_registered_ones(toy, tmp_path):
     from usdface.errors import UsdFaceError
     from usdface.pipeline.batch.manifest import load_manifest

@@ -28,7 +28,8 @@ from .distances import DistanceOptions
 from .evaluation import EvaluateOptions
 from .fields import GROUP_ORDER, NoOptions, Options, defaults_of, flag_of, option, option_fields
 from .media import COLORS, VIEWS, X264_PRESETS, PlayblastOptions, PreviewOptions, ReportOptions
-from .run import DELIVERABLES, OUTPUT_ALIASES, Deliverable, RunOptions, VideoOptions, add_deliverable, output_kinds
+from .run import (DELIVERABLES, OUTPUT_ALIASES, Deliverable, RunOptions, VideoOptions, add_deliverable, output_kinds,
+                  remove_deliverable)
 from .skel import SkelLayerOptions, SkelOptions
 from .solve import BlendshapeOptions, SolveOptions
 from .tissue import FitMusclesOptions, MusclesOptions, SimulateOptions
@@ -45,7 +46,7 @@ __all__ = [
     "LiftOptions", "StereoOptions", "DetectOptions", "LandmarksTrainOptions", "RegisterOptions",
     "ShapesTransferOptions", "EvaluateOptions", "MusclesOptions", "SimulateOptions", "FitMusclesOptions",
     "BatchOptions", "Deliverable", "DELIVERABLES", "OUTPUT_KINDS", "OUTPUT_ALIASES",
-    "add_deliverable", "output_kinds", "option", "option_fields", "flag_of", "defaults_of", "GROUP_ORDER", "UNITS",
+    "add_deliverable", "remove_deliverable", "output_kinds", "option", "option_fields", "flag_of", "defaults_of", "GROUP_ORDER", "UNITS",
     "VIEWS", "COLORS", "X264_PRESETS",
 ]
 

@@ -93,15 +93,16 @@ class Options:
         return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})
 
     @classmethod
-    def from_other(cls, other: "Options"):
+    def from_other(cls, other: "Options", *, strict: bool = True):
         """This class's options taken from another options object: the fields both have, the
         others at their defaults (a `run`'s :class:`RunOptions` gives each step its own options).
-        An object sharing no field with this class is an OptionError naming both classes."""
+        An object sharing no field with this class is an OptionError naming both classes, unless
+        ``strict`` is false (a studio's deliverable step whose options `run` does not have)."""
         if type(other) is cls:
             return other
         mine = {f.name for f in fields(cls)}
         shared = {f.name: getattr(other, f.name) for f in fields(other) if f.name in mine}
-        if not shared and mine:
+        if strict and not shared and mine:
             raise OptionError(f"options: expected {cls.__name__} (or options sharing its fields); got "
                               f"{type(other).__name__}")
         return cls(**shared)

@@ -72,6 +72,11 @@ def add_deliverable(deliverable: Deliverable) -> None:
     DELIVERABLES[deliverable.kind] = deliverable
 
 
+def remove_deliverable(kind: str) -> None:
+    """Forget a studio processor's deliverable (its processor was unregistered)."""
+    DELIVERABLES.pop(kind, None)
+
+
 def __getattr__(name: str):
     if name == "OUTPUT_KINDS":  # the kinds as they are now (a processor package may add one)
         return output_kinds()

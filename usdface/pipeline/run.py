@@ -231,7 +231,9 @@ def _run_steps(job: _Job, f: dict, work: Path, cache) -> None:
         outputs = {"output": f[d.layer], **{name: f[file] for name, file in d.files.items()}}
         outputs.update({name: f[file] for name, (flag, file) in d.optional_files.items() if getattr(o, flag, False)})
         inputs = [available[i.name] for i in step.inputs]
-        steps[d.step] = registry.call(d.step, *inputs, options=step_options, **outputs).summary
+        # the step's options are run's of the same names; a studio step's own take their defaults
+        options = step.options.from_other(step_options, strict=False)
+        steps[d.step] = registry.call(d.step, *inputs, options=options, **outputs).summary
 
 
 def _commit(job: _Job, f: dict, session, prov: dict, started: float) -> str:

@@ -94,7 +94,11 @@ def register(processor: Processor, *, replace: bool = False) -> Processor:
 def unregister(name: str) -> None:
     """Remove a processor added with :func:`register`."""
     _load()
-    _processors.pop(name, None)
+    p = _processors.pop(name, None)
+    if p is not None and p.deliverable is not None:
+        from ..options import remove_deliverable
+
+        remove_deliverable(p.deliverable.kind)
 
 
 def processors() -> list[Processor]:
