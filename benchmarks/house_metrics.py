@@ -13,6 +13,7 @@ import argparse
 import ast
 import importlib.util
 import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -66,6 +67,25 @@ def api_coverage(root: Path) -> tuple[int, int]:
     return tuple(json.loads(out.stdout))
 
 
+def repeated_code(root: Path) -> str:
+    """Pairs of places in the package sharing six or more lines (identical, or alike but for names
+    and values), as counted by the `duplicates` tool when it is installed."""
+    import shutil
+
+    if shutil.which("duplicates") is None:
+        return "n/a (duplicates not installed)"
+    out = subprocess.run(["duplicates", "--repo", str(root / "usdface"), "--seconds", "180"], capture_output=True,
+                         text=True).stdout.splitlines()
+    first = out[0] if out else ""
+    found = re.match(r"(\d+) pairs of places \((\d+) files read\)(?:.*\((\d+) by shape alone, (\d+) of those "
+                     r"marked boilerplate\))?", first)
+    if not found:
+        return "0" if first.startswith("no duplicates") else f"n/a ({first[:60]})"
+    pairs, files, _, boiler = found.groups()
+    kept = int(pairs) - int(boiler or 0)
+    return f"{kept} ({pairs} with boilerplate; {files} files)"
+
+
 def measure(root: Path) -> dict:
     rules = _rules()
     found = rules.scan(root)
@@ -89,6 +109,7 @@ def measure(root: Path) -> dict:
         "processors importing processors": sum("processors never import" in v for v in violations),
         "pxr or cv2 outside their packages": sum(" imports pxr" in v or " imports cv2" in v for v in violations),
         "API coverage (commands)": "{}/{}".format(*api_coverage(root)),
+        "pairs of repeated code (6+ lines)": repeated_code(root),
     }
 
 
