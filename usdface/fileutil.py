@@ -277,6 +277,26 @@ def atomic_write(path: str | os.PathLike, mode: str = "w", *, encoding: str | No
             tmp.unlink()
 
 
+# -- output paths checked before any work ----------------------------------------------------------
+
+def check_output_file(path: str | os.PathLike, *, suffixes, option: str = "-o", joiner: str = ", ",
+                      unwritable=None) -> Path:
+    """``path`` as a Path once its suffix is one of ``suffixes`` and its folder exists and is
+    writable; else an OptionError naming ``option`` (``unwritable(path)`` makes the error for a
+    folder that is not writable, when given)."""
+    from .errors import OptionError
+
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise OptionError(f"{option} {p}: expected a file ending in {joiner.join(suffixes)}")
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise OptionError(f"{option} {p}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise unwritable(p) if unwritable is not None else OptionError(f"{option} {p}: folder {folder} is not writable")
+    return p
+
+
 # -- outputs are never inputs ---------------------------------------------------------------------
 
 def _resolved(path) -> str:

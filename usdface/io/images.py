@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, InputError, OptionError, UsdFaceError
+from ..fileutil import check_output_file
 from ..inputfiles import check_input_file
 
 __all__ = ["IMAGE_SUFFIXES", "FLOAT_MAP_SUFFIXES", "read_image", "write_image", "read_float_map",
@@ -57,15 +58,7 @@ def _replace(tmp: Path, path: Path) -> None:
 
 def check_image_output(path, *, suffixes=IMAGE_SUFFIXES, option: str = "-o") -> Path:
     """Validate an output image path before any work (suffix, existing writable folder)."""
-    p = Path(path)
-    if p.suffix.lower() not in suffixes:
-        raise OptionError(f"{option} {p}: expected a file ending in {', '.join(suffixes)}")
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.is_dir():
-        raise OptionError(f"{option} {p}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise OptionError(f"{option} {p}: folder {folder} is not writable")
-    return p
+    return check_output_file(path, suffixes=suffixes, option=option)
 
 
 def read_image(path, *, gray: bool = False, rgb: bool = False) -> np.ndarray:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import OptionError
-from ..fileutil import refuse_overwriting_inputs
+from ..fileutil import check_output_file, refuse_overwriting_inputs
 from ..options import TrackOptions
 from ..registry import Result
 from ..usd.layers import check_output_path, describe, is_in_memory, provenance
@@ -64,7 +64,7 @@ def track(video, *, options: TrackOptions, output, csv=None, preview=None) -> Re
     inputs = {"video": video, "--seeds": o.seeds, "--layout": o.layout, "--mesh": o.mesh}
     out = check_output_path(output, inputs=inputs)
     refuse_overwriting_inputs({"--csv": csv, "--preview": preview}, inputs)
-    csv_path = _check_csv_output(csv) if csv else None
+    csv_path = check_output_file(csv, suffixes=(".csv",), option="--csv") if csv else None
     png_path = check_image_output(preview, suffixes=(".png",), option="--preview") if preview else None
     reader = open_video(video, rate=o.rate)
     radius = check_radius_range(o.radius, size=reader.size)
@@ -111,16 +111,6 @@ def _layout_front_view(layout_path, mesh_path=None):
     return list(layout.names), np.stack([pts[:, 0], -pts[:, 1]], axis=1)
 
 
-def _check_csv_output(path) -> Path:
-    p = Path(path)
-    if p.suffix.lower() != ".csv":
-        raise OptionError(f"--csv {p}: expected a file ending in .csv")
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.is_dir():
-        raise OptionError(f"--csv {p}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise OptionError(f"--csv {p}: folder {folder} is not writable")
-    return p
 
 
 def _initialise(first, size, o: TrackOptions, radius):

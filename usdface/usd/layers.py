@@ -20,9 +20,9 @@ from pxr import Sdf, Tf, Usd, UsdGeom
 
 from .. import __version__
 from ..errors import InputError, OptionError
+from ..fileutil import (check_output_file, file_digest, fsync_dir, fsync_file,  # noqa: F401 (file_digest re-exported)
+                        inject_fault, refuse_overwriting_inputs, set_default_mode, temporary_path, write_error)
 from ..inputfiles import check_input_file, check_utf8_path, display_name
-from ..fileutil import (file_digest, fsync_dir, fsync_file, inject_fault, refuse_overwriting_inputs,  # noqa: F401
-                        set_default_mode, temporary_path, write_error)  # (file_digest re-exported)
 from ..units import meters_per_unit, unit_name
 from .diagnostics import error_text, trapped
 
@@ -51,13 +51,8 @@ def check_output_path(path: str | os.PathLike, *, suffixes=OUTPUT_SUFFIXES, opti
     check_utf8_path(p, label=option)
     if inputs:
         refuse_overwriting_inputs({option: p}, with_composed_files(inputs))
-    if p.suffix.lower() not in suffixes:
-        raise OptionError(f"{option} {p}: expected a file ending in {' or '.join(suffixes)}")
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.is_dir():
-        raise OptionError(f"{option} {p}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise write_error(p, PermissionError(13, "not writable"))
+    check_output_file(p, suffixes=suffixes, option=option, joiner=" or ",
+                      unwritable=lambda bad: write_error(bad, PermissionError(13, "not writable")))
     return p
 
 
