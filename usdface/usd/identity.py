@@ -31,6 +31,7 @@ from __future__ import annotations
 import logging
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom
@@ -39,18 +40,24 @@ from ..errors import InputError, MixedLayersError
 from ..model.identity import (IDENTITY_VERSION, bound_points_identity, capture_identity, marker_names_identity,
                               mesh_identity, short)
 from ..units import METERS_PER_UNIT, unit_name
-from .layers import describe, is_in_memory, layer_provenance
+from .diagnostics import trapped
+from .layers import USD_ERRORS, describe, is_in_memory, layer_provenance
 
 log = logging.getLogger("usdface")
 
 __all__ = ["mesh_record", "markers_record", "capture_record", "identity", "Claims", "claims_of", "verify",
-           "agreeing_identity", "describe_identity", "prim_mesh_record", "marker_set_take", "stage_findings", "KINDS"]
+           "agreeing_identity", "with_composed_layers", "composed_take", "describe_identity", "prim_mesh_record",
+           "marker_set_take", "stage_findings", "mixed_layers", "mixed_layers_warning", "KINDS"]
 
 KEY = "identity"
 #: the kinds of identity, the field compared, and how a message names the value
 KINDS = ("mesh", "markers", "capture")
 COMPARED = {"mesh": "sha256", "markers": "boundPoints", "capture": "sha256"}
 UNVERIFIED = {"mesh": "its mesh", "markers": "its bound markers", "capture": "its take"}
+#: the processors whose layer holds what its identity of a kind describes (the others record what
+#: their layer was made for or from)
+HOLDERS = {"mesh": frozenset({"import-mesh", "stereo", "register", "shapes transfer"}),
+           "capture": frozenset({"import-capture", "lift", "track"})}
 
 
 # -- records --------------------------------------------------------------------------------------
@@ -97,12 +104,20 @@ def identity(*, mesh=None, markers=None, capture=None) -> dict:
 IS = {"mesh": "is", "markers": "has", "capture": "is"}
 
 
-def _value_text(kind: str, record: dict, *, named: bool = True) -> str:
+def _value_text(kind: str, record: dict, *, named: bool = True, names: bool = False) -> str:
+    """How a message shows an identity; ``names``: a markers record by its marker names (when the
+    names differ) rather than by its bound points."""
     if kind == "mesh":
         return f"{'mesh ' if named else ''}{short(record.get('sha256'))} ({record.get('points')} points)"
     if kind == "markers":
-        return f"bound points {short(record.get('boundPoints'))} ({record.get('count')} markers)"
+        field, what = ("names", "marker names") if names else ("boundPoints", "bound points")
+        return f"{what} {short(record.get(field))} ({record.get('count')} markers)"
     return f"take {short(record.get('sha256'))} ({record.get('markers')} markers, {record.get('frames')} frames)"
+
+
+def _names_differ(kind: str, a: dict, b: dict) -> bool:
+    """Whether two markers records differ in their marker names (not only in the bound points)."""
+    return kind == "markers" and a.get("names") != b.get("names")
 
 
 def describe_identity(ident: dict | None) -> str | None:
@@ -123,9 +138,24 @@ class Claims:
     label: str
     identity: dict | None
     version: str | None
+    processor: str | None = None
 
     def get(self, kind: str) -> dict | None:
         return None if self.identity is None else self.identity.get(kind)
+
+    def holds(self, kind: str) -> bool:
+        """Whether the layer holds what its ``kind`` identity describes (a mesh layer its mesh, a
+        capture or track layer its take) rather than having been made for it."""
+        return self.processor in HOLDERS.get(kind, ())
+
+    def phrase(self, kind: str, record: dict, *, names: bool = False, short_verb: bool = False) -> str:
+        """``"is mesh 9be0… (2020 points)"`` for a layer holding it, else ``"was made for …"``
+        (``short_verb``: ``"for …"``, after a first claim in the same sentence)."""
+        value = _value_text(kind, record, names=names)
+        if self.holds(kind):
+            return f"is {value}"
+        verb = "from" if kind == "capture" else "for"
+        return f"{verb} {value}" if short_verb else f"was made {verb} {value}"
 
 
 def _provenance_of(source) -> dict | None:
@@ -148,7 +178,7 @@ def claims_of(source, what: str) -> Claims:
     named ``"{what} {source}"`` in messages."""
     prov = _provenance_of(source) or {}
     return Claims(label=f"{what} {describe(source)}", identity=_readable(prov.get(KEY)),
-                  version=prov.get("usdfaceVersion"))
+                  version=prov.get("usdfaceVersion"), processor=prov.get("processor"))
 
 
 def _unverified_text(label: str, version: str | None, kinds) -> str:
@@ -179,31 +209,113 @@ def verify(claims: Claims, *, remedy: str = "", **actual) -> None:
             continue
         key = COMPARED[kind]
         if claim.get(key) != record.get(key):
-            verb = "made from" if kind == "capture" else "made for"
-            raise MixedLayersError(f"{claims.label} was {verb} {_value_text(kind, claim)}, {label} {IS[kind]} "
-                                   f"{_value_text(kind, record, named=kind != 'mesh')}"
+            names = _names_differ(kind, claim, record)
+            raise MixedLayersError(f"{claims.label} {claims.phrase(kind, claim, names=names)}, {label} {IS[kind]} "
+                                   f"{_value_text(kind, record, named=kind != 'mesh', names=names)}"
                                    + (f"; {remedy}" if remedy else ""))
     if unverified:
         log.warning("%s", _unverified_text(claims.label, claims.version, unverified))
 
 
 def agreeing_identity(paths, *, what: str) -> dict:
-    """The identity the layers ``paths`` agree on (each kind from the layers that record it);
-    MixedLayersError naming two layers that disagree (``what`` names the file combining them)."""
+    """The identity the layers ``paths`` (strongest first) and the files they compose agree on
+    (each kind from the layers that record it); MixedLayersError naming two layers that disagree
+    and what differs (``what`` names the file combining them, e.g. ``"shot OUTDIR/shot.usda"``).
+
+    Only what the layers record is read (their metadata; no samples): the mesh and capture layers
+    under a shot record their own content, so a deliverable made from another take than the
+    capture its binding references is caught here too.
+    """
     merged, first = {}, {}
-    for path in paths:
+    for path in with_composed_layers(paths):
         claims = claims_of(path, "layer")
         for kind in KINDS:
             claim = claims.get(kind)
             if claim is None:
                 continue
             if kind not in merged:
-                merged[kind], first[kind] = claim, claims.label
+                merged[kind], first[kind] = claim, claims
             elif claim.get(COMPARED[kind]) != merged[kind].get(COMPARED[kind]):
-                verb = "from" if kind == "capture" else "for"
-                raise MixedLayersError(f"{what}: {first[kind]} was made {verb} {_value_text(kind, merged[kind])}, "
-                                       f"{claims.label} {verb} {_value_text(kind, claim)}; they cannot be combined")
+                names = _names_differ(kind, merged[kind], claim)
+                ref = first[kind]
+                raise MixedLayersError(f"{what}: {ref.label} {ref.phrase(kind, merged[kind], names=names)}, "
+                                       f"{claims.label} {claims.phrase(kind, claim, names=names, short_verb=True)}; "
+                                       "they cannot be combined")
     return identity(**merged)
+
+
+def composed_take(source) -> tuple[str, dict] | None:
+    """(file, take record) of the first layer under ``source`` (itself, or a file it composes) that
+    holds a take and records its identity: the markers a binding shows. None when there is none
+    (an in-memory layer, a capture layer of usdface 0.2)."""
+    if is_in_memory(source):
+        return None
+    for path in with_composed_layers([source]):
+        claims = claims_of(path, "layer")
+        if claims.holds("capture") and claims.get("capture") is not None:
+            return str(path), claims.get("capture")
+    return None
+
+
+#: most files followed under one layer (a shot composes five or six)
+_MAX_COMPOSED = 64
+
+
+def with_composed_layers(paths) -> list:
+    """``paths`` (strongest first), each followed by the local layers it composes (sublayers,
+    references, payloads; recursively), each file once. A composed file is named relative to the
+    folder of the path that led to it (``OUTDIR/mesh.usdc`` under ``OUTDIR/anim.usdc``), as the
+    caller named that path. In-memory layers are kept as they are (they compose no file)."""
+    seen, out = set(), []
+    for path in paths:
+        if is_in_memory(path):
+            out.append(path)
+            continue
+        base = Path(path)
+        for found in [base, *(base.parent / rel for rel in _composed_relative(base))]:
+            key = os.path.realpath(found)
+            if key not in seen:
+                seen.add(key)
+                out.append(found)
+    return out
+
+
+def _composed_relative(path: Path) -> list[str]:
+    """The local layer files ``path`` composes, recursively, relative to its folder. A .usdc is
+    opened for its metadata only (its sublayers; usdface's binary layers compose nothing else),
+    a .usda fully (a binding references its capture)."""
+    root = os.path.realpath(path)
+    folder = os.path.dirname(root)
+    seen, todo, found = {root}, [root], []
+    while todo and len(seen) < _MAX_COMPOSED:
+        current = todo.pop(0)
+        for target in _dependencies(current):
+            if target not in seen:
+                seen.add(target)
+                todo.append(target)
+                found.append(os.path.relpath(target, folder))
+    return found
+
+
+def _dependencies(path: str) -> list[str]:
+    """Absolute paths of the existing local files one layer file composes ([] when it cannot be read:
+    the reader of that layer says why)."""
+    try:
+        with trapped():
+            layer = Sdf.Layer.OpenAsAnonymous(path, metadataOnly=True) if path.lower().endswith(".usdc") else \
+                Sdf.Layer.FindOrOpen(path)
+    except USD_ERRORS:
+        return []
+    if layer is None:
+        return []
+    assets = list(layer.subLayerPaths) if path.lower().endswith(".usdc") else \
+        list(layer.GetCompositionAssetDependencies())
+    found = []
+    for asset in assets:
+        target = os.path.normpath(os.path.join(os.path.dirname(path), asset)) if not os.path.isabs(asset) else asset
+        if os.path.isfile(target):
+            found.append(os.path.realpath(target))
+    return found
 
 
 # -- identities of a composed stage (usdface check) -----------------------------------------------
@@ -266,9 +378,24 @@ def layer_capture_record(layer: Sdf.Layer) -> dict | None:
                                   if spec.HasInfo("apiSchemas") else ()) for spec in _prim_specs(layer)):
         return None
     try:
-        return capture_record(read_capture_layer(layer.identifier, stage=Usd.Stage.Open(layer)))
+        stage = Usd.Stage.Open(layer)
+        capture = read_capture_layer(layer.identifier, stage=stage)
     except (InputError, ValueError):
         return None
+    if _pixel_units(stage):
+        capture = capture.replace(units="px")  # a 2D track layer: pixels, as `track` records and `lift` reads it
+    return capture_record(capture)
+
+
+def _pixel_units(stage: Usd.Stage) -> bool:
+    """Whether the stage's marker set declares pixels (a 2D track layer, which has no metersPerUnit)."""
+    from .capture_layer import find_marker_set
+
+    try:
+        prim = find_marker_set(stage, what="track layer")
+    except InputError:
+        return False
+    return prim.GetAttribute("usdface:markerSet:sourceUnits").Get() == "px"
 
 
 def _prim_specs(layer: Sdf.Layer):
@@ -321,19 +448,21 @@ def _claim_finding(name: str, kind: str, claim: dict, reference: tuple, layer) -
     text, record, holder, named = reference
     if claim.get(COMPARED[kind]) == record.get(COMPARED[kind]):
         return None
+    names = _names_differ(kind, claim, record)
     if holder is not None and holder == layer:
-        return (f"{name} records {_value_text(kind, claim)} but holds {_value_text(kind, record)} (changed after "
-                "usdface wrote it)")
+        return (f"{name} records {_value_text(kind, claim, names=names)} but holds "
+                f"{_value_text(kind, record, names=names)} (changed after usdface wrote it)")
     verb = "made from" if kind == "capture" else "made for"
-    return f"{name} was {verb} {_value_text(kind, claim)}, {text} {_value_text(kind, record, named=named)}"
+    return (f"{name} was {verb} {_value_text(kind, claim, names=names)}, {text} "
+            f"{_value_text(kind, record, named=named, names=names)}")
 
 
 def stage_findings(stage: Usd.Stage, *, folder=None) -> list[tuple[str, str, str]]:
     """(severity, layer, message) for every layer of ``stage`` (root, sublayers, references) whose
     recorded identity differs from what the stage holds (its mesh's rest points and topology, its
     binding's bound points, its captures' takes) or, where the stage holds none, from the first
-    (strongest) layer recording one; a warning for each usdface layer that records none and is not
-    a mesh, capture or track layer (their identity is their content)."""
+    (strongest) layer recording one; a warning for each usdface layer that records none and does
+    not hold its own mesh or take (:data:`HOLDERS`: their identity is their content)."""
     session = stage.GetSessionLayer()
     layers = [layer for layer in stage.GetUsedLayers(includeClipLayers=False) if layer != session]
     order = {layer.identifier: i for i, layer in enumerate(stage.GetLayerStack(includeSessionLayers=False))}
@@ -349,7 +478,7 @@ def stage_findings(stage: Usd.Stage, *, folder=None) -> list[tuple[str, str, str
         name = _name(layer, folder)
         ident = _readable(prov.get(KEY))
         if ident is None:
-            if prov.get("processor") not in ("import-mesh", "import-capture", "track"):
+            if prov.get("processor") not in HOLDERS["mesh"] | HOLDERS["capture"]:  # content is identity
                 findings.append(("warning", name, _unverified_text(name, prov.get("usdfaceVersion"), ("mesh",))))
             continue
         for kind in KINDS:
@@ -370,3 +499,22 @@ def stage_findings(stage: Usd.Stage, *, folder=None) -> list[tuple[str, str, str
             if message is not None:
                 findings.append(("error", name, message))
     return findings
+
+
+def mixed_layers(path) -> list[str]:
+    """The errors :func:`stage_findings` reports on the stage at ``path`` (layers made for another
+    mesh, other bound points or another take than the ones it composes), in the order `check` lists
+    them, for the commands that only read a shot (`playblast`, `report`) and warn; [] for a
+    consistent shot."""
+    from .layers import open_stage
+
+    path = Path(path)
+    stage = open_stage(path, what="shot")
+    findings = stage_findings(stage, folder=path.resolve().parent)
+    return [message for severity, _, message in sorted(findings, key=lambda f: f[1]) if severity == "error"]  # as check
+
+
+def mixed_layers_warning(path, messages: list[str]) -> str:
+    """One line for a shot whose layers disagree: the first finding, how many more, where to look."""
+    more = f" (and {len(messages) - 1} more)" if len(messages) > 1 else ""
+    return f"shot {path} mixes layers: {messages[0]}{more}; `usdface check {path}` lists every finding"

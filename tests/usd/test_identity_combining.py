@@ -1,0 +1,186 @@
+"""Layers know what they belong to (issue 20, item 2), second part: the layers of track, lift, the
+tissue commands, the shot stages, and the commands that combine or read them (lift, muscles,
+simulate, fit-muscles, evaluate, run, playblast, report)."""
+from __future__ import annotations
+
+import dataclasses
+import shutil
+
+import pytest
+
+from tests.hostile import assert_one_line, run_in_process
+from tests.usd.identity_helpers import LAYOUTS, OBJS, recorded, short, stripped
+
+
+def _layout(sa, key="mh"):
+    return sa / "layouts" / f"{LAYOUTS[key]}.layout.json"
+
+
+def _mesh_ids(fx):
+    return recorded(fx["mh"])["mesh"], recorded(fx["mp"])["mesh"]
+
+
+@pytest.fixture(scope="module")
+def tracked(tmp_path_factory, sample_assets):
+    """The sample video's dots tracked into a track layer."""
+    from usdface import api
+
+    d = tmp_path_factory.mktemp("tracked")
+    video = sample_assets / "video"
+    api.track(str(video / "animface_dots.mp4"), {"seeds": str(video / "animface_dots.seeds.json")},
+              output=d / "tracks.usdc")
+    return d / "tracks.usdc"
+
+
+@pytest.fixture(scope="module")
+def rig(fx, sample_assets):
+    """A muscle rig placed on the MakeHuman face (by its layout)."""
+    from usdface import api
+
+    out = fx["dir"] / "rig_mh.usda"
+    if not out.exists():
+        api.muscles(fx["mh"], {"layout": str(_layout(sample_assets))}, output=out)
+    return out
+
+
+# -- what the new layers record -------------------------------------------------------------------
+
+
+# -- the tissue commands --------------------------------------------------------------------------
+
+
+# -- shot stages ------------------------------------------------------------------------------------
+
+def test_shot_stage_refuses_an_animation_over_the_capture_of_another_take(fx, tmp_path):
+    """The binding composes its capture: a shot of the Jaw animation over the binding made with the
+    Nose take shows markers that do not follow the face, though no direct layer disagrees."""
+    from usdface.errors import MixedLayersError
+    from usdface.usd.analysis_layer import write_shot_stage
+
+    out = tmp_path / "shot.usda"
+    with pytest.raises(MixedLayersError) as err:
+        write_shot_stage(out, layers=[fx["anim"], fx["an_mh"], fx["bind_mh_nose"]], rate=60, start=300, end=399,
+                         units="cm", record={"runId": "x", "files": {}})
+    jaw, nose = recorded(fx["jaw"])["capture"], recorded(fx["nose"])["capture"]
+    assert str(err.value) == (f"shot {out}: layer {fx['anim']} was made from take {short(jaw['sha256'])} (41 markers, "
+                              f"100 frames), layer {fx['dir'] / 'nose.usdc'} is take {short(nose['sha256'])} (41 "
+                              "markers, 100 frames); they cannot be combined")
+    assert err.value.exit_code == 2 and not out.exists()
+
+
+def test_messages_say_whether_marker_names_or_bound_points_differ():
+    from usdface.errors import MixedLayersError
+    from usdface.usd.identity import Claims, verify
+
+    names = {"names": "a" * 64, "boundPoints": "b" * 64, "count": 41}
+    claims = Claims(label="analysis an.usdc", identity={"version": 1, "markers": names}, version="0.3.0",
+                    processor="distances")
+    with pytest.raises(MixedLayersError) as err:
+        verify(claims, markers=("binding b.usda", {"names": "c" * 64, "boundPoints": "d" * 64, "count": 40}))
+    assert str(err.value) == ("analysis an.usdc was made for marker names aaaaaaaaaaaa (41 markers), binding b.usda "
+                              "has marker names cccccccccccc (40 markers)")
+    with pytest.raises(MixedLayersError) as err:
+        verify(claims, markers=("binding b.usda", {"names": "a" * 64, "boundPoints": "d" * 64, "count": 41}))
+    assert str(err.value) == ("analysis an.usdc was made for bound points bbbbbbbbbbbb (41 markers), binding b.usda "
+                              "has bound points dddddddddddd (41 markers)")
+
+
+# -- run, and the commands that read its shot -------------------------------------------------------
+
+_OTHER_TAKE = {}
+
+
+def transfer_of_another_take(mesh, capture, binding, analysis, *, options, output):
+    """`transfer` run on another take than the one given (a faulty step, for the test below)."""
+    from usdface.processors.transfer import transfer
+
+    return transfer(mesh, _OTHER_TAKE["capture"], binding, analysis, options=options, output=output)
+
+
+def _run_args(sa, out, *, take="Jaw", trim=("300", "400")):
+    return ("run", "--mesh", sa / "meshes" / OBJS["mh"], "--capture", sa / "capture" / f"{take}MoCap.ma",
+            "--layout", _layout(sa), "--trim", *trim, "--method", "euclidean", "-o", out, "-q")
+
+
+def test_run_refuses_a_shot_whose_layers_disagree(fx, sample_assets, tmp_path, capsys):
+    """A step that wrote its layer from another take (a faulty plug-in step): the shot stage is
+    refused, naming both files and both takes, and OUTDIR is left as it was."""
+    from usdface import registry
+
+    original = registry.find("transfer")
+    _OTHER_TAKE["capture"] = fx["nose"]
+    registry.register(dataclasses.replace(original, function=f"{__name__}:transfer_of_another_take"), replace=True)
+    out = tmp_path / "shot"
+    try:
+        rc, lines = run_in_process(capsys, *_run_args(sample_assets, out))
+    finally:
+        registry.register(original, replace=True)
+    assert_one_line(rc, lines, code=2, command="run")
+    nose = recorded(fx["nose"])["capture"]
+    assert lines[0].startswith(f"usdface run: error: shot step failed: shot {out / 'shot.usda'}: layer "
+                               f"{out / 'anim.usdc'} was made from take {short(nose['sha256'])} (41 markers, 100 "
+                               f"frames), layer {out / 'capture.usdc'} is take "), lines
+    assert lines[0].endswith(" (41 markers, 100 frames); they cannot be combined")
+    assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def run_shot(sample_assets, tmp_path_factory):
+    d = tmp_path_factory.mktemp("runshot")
+    from usdface.cli import main
+
+    assert main([str(a) for a in _run_args(sample_assets, d / "shot")]) == 0
+    return d / "shot"
+
+
+def test_check_reports_a_run_shot_with_the_analysis_of_another_mesh(fx, run_shot, tmp_path):
+    from usdface import api
+
+    out = tmp_path / "shot"
+    shutil.copytree(run_shot, out)
+    assert api.check(out / "shot.usda").exit_code == 0
+    shutil.copy(fx["an_mp"], out / "analysis.usdc")
+    result = api.check(out / "shot.usda")
+    assert result.exit_code == 1
+    mh, mp = _mesh_ids(fx)
+    errors = [(f["site"], f["message"]) for f in result.summary["findings"]
+              if f["rule"] == "usdface:LayerIdentity" and f["severity"] == "error"]
+    assert ("analysis.usdc", f"analysis.usdc was made for mesh {short(mp['sha256'])} (468 points), the stage's mesh "
+                             f"/Face/Geom (points from mesh.usdc) is {short(mh['sha256'])} (2020 points)") in errors
+
+
+@pytest.fixture(scope="module")
+def mixed_shot(fx, run_shot, tmp_path_factory):
+    """The run shot with its capture replaced by another take of the same character."""
+    out = tmp_path_factory.mktemp("mixed") / "shot"
+    shutil.copytree(run_shot, out)
+    before = recorded(out / "capture.usdc")["capture"]
+    shutil.copy(fx["nose"], out / "capture.usdc")
+    return out, before, recorded(out / "capture.usdc")["capture"]
+
+
+def _mixed_message(before, now) -> str:
+    return (f"anim.usdc was made from take {short(before['sha256'])} (41 markers, 100 frames), capture capture.usdc "
+            f"is take {short(now['sha256'])} (41 markers, 100 frames)")
+
+
+def test_two_takes_on_one_mesh_share_the_distance_cache_entry(sample_assets, tmp_path):
+    """Through `run`: the Nose take's shot reuses the matrices computed for the Jaw take's, and
+    their bindings and analyses record the same identity (no take), their animations their takes."""
+    from usdface import registry
+    from usdface.cache import ContentCache
+    from usdface.options import RunOptions
+
+    cache = ContentCache(tmp_path / "cache")
+    sa = sample_assets
+    summaries = {}
+    for take, trim in (("Jaw", (300, 400)), ("Nose", (100, 200))):
+        options = RunOptions(layout=str(_layout(sa)), trim=trim, method="euclidean")
+        summaries[take] = registry.call("run", str(sa / "meshes" / OBJS["mh"]), str(sa / "capture" / f"{take}MoCap.ma"),
+                                        options=options, output=tmp_path / take, cache=cache).summary
+    status = {take: s["steps"]["distances"]["cache"] for take, s in summaries.items()}
+    assert status["Jaw"]["status"] == "miss" and status["Nose"]["status"] == "hit"
+    assert status["Jaw"]["key"] == status["Nose"]["key"]
+    for name in ("binding.usda", "analysis.usdc"):
+        assert recorded(tmp_path / "Jaw" / name) == recorded(tmp_path / "Nose" / name)
+    assert recorded(tmp_path / "Jaw" / "anim.usdc")["capture"] != recorded(tmp_path / "Nose" / "anim.usdc")["capture"]
