@@ -45,6 +45,46 @@ def rig(fx, sample_assets):
 
 # -- what the new layers record -------------------------------------------------------------------
 
+def test_a_track_layer_records_its_own_take_as_every_reader_reads_it(tracked):
+    """A 2D track layer is a take: it records it, in pixels, equal to what `lift` reads from it and
+    what `check` computes from it (which reads it as a capture layer: no metersPerUnit)."""
+    from pxr import Sdf
+
+    from usdface import api
+    from usdface.usd.identity import capture_record, layer_capture_record
+    from usdface.usd.track_layer import read_track_layer
+
+    own = recorded(tracked)
+    assert set(own) == {"version", "capture"}
+    assert own["capture"] == capture_record(read_track_layer(tracked)[0]) == \
+        layer_capture_record(Sdf.Layer.FindOrOpen(str(tracked)))
+    assert own["capture"]["markers"] == 41 and own["capture"]["frames"] == 72
+    assert not [f for f in api.check(tracked).summary["findings"] if f["rule"] == "usdface:LayerIdentity"]
+
+
+def test_lift_refuses_a_binding_of_another_mesh(fx, tracked, tmp_path, capsys):
+    out = tmp_path / "lifted.usdc"
+    rc, lines = run_in_process(capsys, "lift", tracked, "--mesh", fx["mh"], "--binding", fx["bind_mp"], "-o", out)
+    assert_one_line(rc, lines, code=2, command="lift")
+    mh, mp = _mesh_ids(fx)
+    assert lines[0] == (f"usdface lift: error: binding {fx['bind_mp']} was made for mesh {short(mp['sha256'])} (468 "
+                        f"points), mesh {fx['mh']} is {short(mh['sha256'])} (2020 points); bind on this mesh "
+                        "(`usdface bind`), or lift with --layout")
+    assert not out.exists()
+
+
+def test_lift_takes_a_binding_of_usdface_0_2_and_its_layer_is_a_take(fx, tracked, tmp_path, capsys):
+    from usdface.usd.capture_layer import read_capture_layer
+    from usdface.usd.identity import capture_record
+
+    old = stripped(fx["bind_mh"], "bind_old_lift.usda")
+    out = tmp_path / "lifted.usdc"
+    rc, lines = run_in_process(capsys, "lift", tracked, "--mesh", fx["mh"], "--binding", old, "-o", out, "-q")
+    assert rc == 0 and lines == [f"usdface: WARNING: binding {old} was written by usdface 0.2.0: its mesh cannot be "
+                                 "verified"]
+    # a capture: no mesh (it may be bound on another face, by layout or retargeted), its own take
+    assert recorded(out) == {"version": 1, "capture": capture_record(read_capture_layer(out))}
+
 
 # -- the tissue commands --------------------------------------------------------------------------
 
