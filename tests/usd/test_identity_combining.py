@@ -88,6 +88,111 @@ def test_lift_takes_a_binding_of_usdface_0_2_and_its_layer_is_a_take(fx, tracked
 
 # -- the tissue commands --------------------------------------------------------------------------
 
+def test_muscles_refuses_a_binding_of_another_mesh_and_records_its_mesh(fx, rig, tmp_path, capsys):
+    out = tmp_path / "rig.usda"
+    rc, lines = run_in_process(capsys, "muscles", "--mesh", fx["mh"], "--binding", fx["bind_mp"], "-o", out)
+    assert_one_line(rc, lines, code=2, command="muscles")
+    mh, mp = _mesh_ids(fx)
+    assert lines[0] == (f"usdface muscles: error: binding {fx['bind_mp']} was made for mesh {short(mp['sha256'])} "
+                        f"(468 points), mesh {fx['mh']} is {short(mh['sha256'])} (2020 points); bind the capture on "
+                        "this mesh (`usdface bind`), or place the muscles with --layout")
+    assert not out.exists()
+    assert recorded(rig) == {"version": 1, "mesh": mh}  # a rig serves every take and marker set
+
+
+def test_muscles_takes_a_binding_of_usdface_0_2_with_a_warning(fx, tmp_path, capsys):
+    old = stripped(fx["bind_mh"], "bind_old_muscles.usda")
+    rc, lines = run_in_process(capsys, "muscles", "--mesh", fx["mh"], "--binding", old, "-o", tmp_path / "r.usda",
+                               "-q")
+    assert rc == 0 and lines == [f"usdface: WARNING: binding {old} was written by usdface 0.2.0: its mesh cannot be "
+                                 "verified"]
+
+
+def test_simulate_refuses_a_rig_placed_on_another_face(fx, rig, tmp_path, capsys):
+    """The stylized face has the MakeHuman topology: the rig used to simulate on it silently."""
+    out = tmp_path / "joy.usdc"
+    rc, lines = run_in_process(capsys, "simulate", "--mesh", fx["sty"], "--rig", rig, "--expression", "joy",
+                               "-o", out)
+    assert_one_line(rc, lines, code=2, command="simulate")
+    mh, sty = recorded(fx["mh"])["mesh"], recorded(fx["sty"])["mesh"]
+    assert lines[0] == (f"usdface simulate: error: rig {rig} was made for mesh {short(mh['sha256'])} (2020 points), "
+                        f"mesh {fx['sty']} is {short(sty['sha256'])} (2020 points); place the muscles on this mesh "
+                        "(`usdface muscles`; --from-rig warps this rig onto it)")
+    assert not out.exists() and not (tmp_path / "joy_shot.usda").exists()
+
+
+def test_simulate_records_its_mesh_and_its_shot_the_identity_of_its_layers(fx, rig, tmp_path, capsys):
+    """A rig of usdface 0.2 is accepted with one warning; the animation and the shot beside it
+    record the mesh (no take: a preset drives it), and `check` finds them consistent."""
+    from usdface import api
+
+    old = stripped(rig, "rig_old.usda")
+    out = tmp_path / "joy.usdc"
+    rc, lines = run_in_process(capsys, "simulate", "--mesh", fx["mh"], "--rig", old, "--expression", "joy",
+                               "--ramp", "1", "--hold", "0", "-o", out, "-q")
+    assert rc == 0 and lines == [f"usdface: WARNING: rig {old} was written by usdface 0.2.0: its mesh cannot be "
+                                 "verified"]
+    mesh = recorded(fx["mh"])["mesh"]
+    shot = tmp_path / "joy_shot.usda"
+    assert recorded(out) == recorded(shot) == {"version": 1, "mesh": mesh}
+    assert api.check(shot).exit_code == 0
+
+
+def test_fit_muscles_refuses_a_rig_or_a_binding_of_another_mesh(fx, rig, sample_assets, tmp_path, capsys):
+    from usdface import api
+
+    mh, mp = _mesh_ids(fx)
+    rig_mp = tmp_path / "rig_mp.usda"
+    api.muscles(fx["mp"], {"layout": str(_layout(sample_assets, "mp"))}, output=rig_mp)
+    out = tmp_path / "fit.usdc"
+    rc, lines = run_in_process(capsys, "fit-muscles", "--mesh", fx["mh"], "--rig", rig_mp, "--capture", fx["jaw"],
+                               "--binding", fx["bind_mh"], "-o", out)
+    assert_one_line(rc, lines, code=2, command="fit-muscles")
+    assert lines[0] == (f"usdface fit-muscles: error: rig {rig_mp} was made for mesh {short(mp['sha256'])} (468 "
+                        f"points), mesh {fx['mh']} is {short(mh['sha256'])} (2020 points); place the muscles on this "
+                        "mesh (`usdface muscles`; --from-rig warps this rig onto it)")
+    rc, lines = run_in_process(capsys, "fit-muscles", "--mesh", fx["mh"], "--rig", rig, "--capture", fx["jaw"],
+                               "--binding", fx["bind_mp"], "-o", out)
+    assert_one_line(rc, lines, code=2, command="fit-muscles")
+    assert lines[0] == (f"usdface fit-muscles: error: binding {fx['bind_mp']} was made for mesh "
+                        f"{short(mp['sha256'])} (468 points), mesh {fx['mh']} is {short(mh['sha256'])} (2020 points); "
+                        "bind the capture on this mesh (`usdface bind`)")
+    assert not out.exists()
+
+
+def test_fit_muscles_on_another_take_of_the_binding(fx, rig, tmp_path, capsys):
+    """A binding serves every take: fitting the Nose take with the binding made on the Jaw take is
+    right, and the layer records the Nose take. The shot beside it would show the Jaw markers over
+    the Nose fit: it composes the animation alone, and says so."""
+    from usdface import api
+
+    out = tmp_path / "fit.usdc"
+    rc, lines = run_in_process(capsys, "fit-muscles", "--mesh", fx["mh"], "--rig", rig, "--capture", fx["nose"],
+                               "--binding", fx["bind_mh"], "--frames", "0", "40", "--step", "20", "--refine", "0",
+                               "-o", out, "-q")
+    jaw, nose = recorded(fx["jaw"])["capture"], recorded(fx["nose"])["capture"]
+    shot = tmp_path / "fit_shot.usda"
+    assert rc == 0 and lines == [
+        f"usdface: WARNING: shot {shot}: binding {fx['bind_mh']} shows the markers of take {short(jaw['sha256'])} "
+        f"(jaw.usdc), the fit is of take {short(nose['sha256'])} (capture {fx['nose']}): the shot holds the "
+        "animation without markers; bind this take to see them"]
+    assert recorded(out) == {"version": 1, "mesh": recorded(fx["mh"])["mesh"],
+                             "markers": recorded(fx["bind_mh"])["markers"], "capture": nose}
+    assert recorded(shot) == recorded(out) and api.check(shot).exit_code == 0
+    from pxr import Sdf
+
+    layer = Sdf.Layer.FindOrOpen(str(shot))
+    assert list(layer.subLayerPaths) == ["./fit.usdc"]
+    # with the binding of the take fitted, the shot shows its markers
+    rc, lines = run_in_process(capsys, "fit-muscles", "--mesh", fx["mh"], "--rig", rig, "--capture", fx["nose"],
+                               "--binding", fx["bind_mh_nose"], "--frames", "0", "40", "--step", "20", "--refine",
+                               "0", "-o", tmp_path / "fit2.usdc", "-q")
+    assert rc == 0 and lines == []
+    layer = Sdf.Layer.FindOrOpen(str(tmp_path / "fit2_shot.usda"))
+    subs = list(layer.subLayerPaths)
+    assert subs[0] == "./fit2.usdc" and (tmp_path / subs[1]).resolve() == fx["bind_mh_nose"].resolve()
+    assert api.check(tmp_path / "fit2_shot.usda").exit_code == 0
+
 
 # -- shot stages ------------------------------------------------------------------------------------
 
