@@ -194,6 +194,21 @@ def test_fit_muscles_on_another_take_of_the_binding(fx, rig, tmp_path, capsys):
     assert api.check(tmp_path / "fit2_shot.usda").exit_code == 0
 
 
+def test_evaluate_refuses_a_binding_of_another_mesh(fx, sample_assets, capsys):
+    shapes = sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz"
+    rc, lines = run_in_process(capsys, "evaluate", "--mesh", fx["mh"], "--shapes", shapes, "--binding", fx["bind_mp"])
+    assert_one_line(rc, lines, code=2, command="evaluate")
+    mh, mp = _mesh_ids(fx)
+    assert lines[0] == (f"usdface evaluate: error: binding {fx['bind_mp']} was made for mesh {short(mp['sha256'])} "
+                        f"(468 points), mesh {fx['mh']} is {short(mh['sha256'])} (2020 points); bind on this mesh "
+                        "(`usdface bind`), or place the markers with --layout")
+    old = stripped(fx["bind_mh"], "bind_old_evaluate.usda")
+    rc, lines = run_in_process(capsys, "evaluate", "--mesh", fx["mh"], "--shapes", shapes, "--binding", old,
+                               "--only", "jawOpen", "--methods", "euclidean", "--pins", "none", "-q")
+    assert rc == 0 and lines == [f"usdface: WARNING: binding {old} was written by usdface 0.2.0: its mesh cannot be "
+                                 "verified"]
+
+
 # -- shot stages ------------------------------------------------------------------------------------
 
 def test_shot_stage_refuses_an_animation_over_the_capture_of_another_take(fx, tmp_path):
