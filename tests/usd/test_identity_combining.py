@@ -324,6 +324,38 @@ def _mixed_message(before, now) -> str:
             f"is take {short(now['sha256'])} (41 markers, 100 frames)")
 
 
+def test_playblast_warns_about_a_mixed_shot_and_renders_it(mixed_shot, tmp_path, capsys):
+    """A playblast is how one looks at a shot: it renders the mix, says so on one line and in its
+    summary; `check` (exit 1) is the gate."""
+    pytest.importorskip("av")
+    from usdface import api
+
+    out, before, now = mixed_shot
+    shot = out / "shot.usda"
+    movie = tmp_path / "mixed.mp4"
+    rc, lines = run_in_process(capsys, "playblast", shot, "-o", movie, "--size", "160x96", "--range", "0", "5",
+                               "--workers", "1", "-q")
+    assert rc == 0 and movie.is_file()
+    assert lines == [f"usdface: WARNING: shot {shot} mixes layers: {_mixed_message(before, now)} (and 1 more); "
+                     f"`usdface check {shot}` lists every finding"]
+    summary = api.playblast(str(shot), {"size": (160, 96), "frame_range": (0, 1), "workers": 1},
+                            output=tmp_path / "again.mp4").summary
+    assert summary["mixedLayers"][str(shot)][0] == _mixed_message(before, now)
+
+
+def test_report_lists_a_mix_first(mixed_shot, tmp_path, capsys):
+    pytest.importorskip("plotly")
+    out, before, now = mixed_shot
+    page = tmp_path / "report.html"
+    rc, lines = run_in_process(capsys, "report", out, "-o", page, "--no-playblast", "-q")
+    shot = out / "shot.usda"
+    assert rc == 0 and lines == [f"usdface: WARNING: shot {shot} mixes layers: {_mixed_message(before, now)} (and 1 "
+                                 f"more); `usdface check {shot}` lists every finding"]
+    html = page.read_text()
+    first = html.index('<div class="warn">')
+    assert html[first:].startswith(f'<div class="warn">mixed layers: {_mixed_message(before, now)}</div>')
+
+
 def test_two_takes_on_one_mesh_share_the_distance_cache_entry(sample_assets, tmp_path):
     """Through `run`: the Nose take's shot reuses the matrices computed for the Jaw take's, and
     their bindings and analyses record the same identity (no take), their animations their takes."""
