@@ -12,7 +12,13 @@ interleaved and repeated, with medians:
 - ``composed mesh identity``: :func:`usdface.usd.identity.prim_mesh_record` on the opened stage (what
   `check` and `info` compute);
 - the take identity of the whole Jaw take (1590 frames x 41 markers) against reading its capture
-  layer.
+  layer;
+- on the shot `usdface run` writes for the whole Jaw take (MakeHuman face, Euclidean): the shot
+  writer's agreement check (:func:`usdface.usd.identity.agreeing_identity`: the layers' metadata and
+  the files they compose) against writing the shot stage with it, and what `playblast` and `report`
+  add (:func:`usdface.usd.identity.mixed_layers`: check's identity findings, which hash the composed
+  mesh and read the capture layer) against opening the shot for playback
+  (:meth:`usdface.usd.playback.ShotReader.open`).
 
 Prints the medians, the bytes hashed and the ratios against the baselines measured in the same run.
 """
@@ -91,7 +97,43 @@ def main() -> int:
           f"{med['composed mesh identity'] / med['read mesh layer']:.2f}x")
     print(f"take identity ({take.n_frames} frames x {take.n_markers} markers): "
           f"{med['take identity'] / med['read capture layer']:.3f}x the read of the capture layer")
+    _shot_costs(out, args.repeats)
     return 0
+
+
+def _shot_costs(out: Path, repeats: int) -> None:
+    """The shot writer's agreement check and the readers' identity findings on a run's shot."""
+    from usdface.cli import main as usdface
+    from usdface.usd.analysis_layer import write_shot_stage
+    from usdface.usd.identity import agreeing_identity, mixed_layers
+    from usdface.usd.playback import ShotReader
+
+    shot_dir = out / "jaw_shot"
+    if not (shot_dir / "shot.usda").is_file():
+        assert usdface(["run", "--mesh", str(SAMPLES / "meshes" / "makehuman_hm08_face_cm.obj"), "--capture",
+                        str(SAMPLES / "capture" / "JawMoCap.ma"), "--layout",
+                        str(SAMPLES / "layouts" / "makehuman_hm08_face.layout.json"), "--method", "euclidean",
+                        "-o", str(shot_dir), "-q"]) == 0
+    layers = [shot_dir / n for n in ("anim.usdc", "analysis.usdc", "binding.usda")]
+    shot = shot_dir / "shot.usda"
+    scratch = out / "shot_again.usda"
+    cases = {"agreeing identity": lambda: agreeing_identity(layers, what="shot"),
+             "write shot stage": lambda: write_shot_stage(scratch, layers=layers, rate=60, start=0, end=1589,
+                                                          units="cm", record={"runId": "bench", "files": {}}),
+             "mixed layers": lambda: mixed_layers(shot), "open shot": lambda: ShotReader.open(shot)}
+    times = {name: [] for name in cases}
+    for _ in range(repeats):
+        for name, fn in cases.items():
+            times[name].append(_timed(fn))
+    med = {name: statistics.median(v) for name, v in times.items()}
+    print(f"run shot of the whole Jaw take ({shot_dir}):")
+    for name, v in med.items():
+        print(f"  {name:24s} median {1e3 * v:8.1f} ms  (min {1e3 * min(times[name]):.1f}, max "
+              f"{1e3 * max(times[name]):.1f})")
+    writer = med["agreeing identity"] / med["write shot stage"]
+    readers = med["mixed layers"] / med["open shot"]
+    print(f"shot writer: the agreement check is {writer:.2f}x of writing the stage (which includes it); "
+          f"playblast/report: identity findings {readers:.2f}x the opening of the shot for playback")
 
 
 if __name__ == "__main__":
