@@ -9,6 +9,10 @@ difference::
 
     python benchmarks/byte_identity.py --before 9e2e68a            # 0.2.0 against this tree
     python benchmarks/byte_identity.py --before 9e2e68a --jobs main solve
+    python benchmarks/byte_identity.py --before c5721ae --identity  # layer identities added since
+
+``--identity`` also allows what the layer identities (issue 20) change on purpose, listed in
+``IDENTITY_ALLOWED``: everything else must still agree byte for byte.
 
 Jobs (the README's commands): ``main`` (the main job), ``all`` (``run --output-kind all``),
 ``batch`` (the batch example, serial), ``solve`` (``solve --csv --livelink``), ``playblast`` (of
@@ -43,6 +47,43 @@ ALLOWED = {
     "usdfaceVersion": "the version number (only if it was bumped)",
     "steps (batch summary)": "a batch shot record's {step: wall seconds}",
 }
+
+
+#: with --identity: what layer identities change on purpose, and why
+IDENTITY_ALLOWED = {
+    "customLayerData usdface.identity": "the identities a layer records (new)",
+    "sha256 of a USD input, and a shot record's file sha256 and provenance id": "the input layers gained their "
+    "identity, so their bytes differ",
+    "the provenance of a simulate/fit-muscles shot stage": "new: version, processor and identity (it had none)",
+    "the capture cache key, and the cache entry's record of its layer": "the key gained the identity version, so "
+    "entries whose layer has no identity are not reused (entries are compared under the new key)",
+}
+
+
+def _identity_stripped(text: str) -> str:
+    """USD text without what :data:`IDENTITY_ALLOWED` lists."""
+    text = _without_block(text, "dictionary identity = {")
+    # hashes of .usd* inputs (provenance inputs, shot records), quotes escaped or not
+    text = re.sub(r'(\\?"file\\?": \\?"[^"\\]*\.usd[ac]?\\?", \\?"sha256\\?": )\\?"[0-9a-f]{64}\\?"',
+                  r"\1<layer sha256>", text)
+    text = re.sub(r'(\\?"[^"\\]*\.usd[ac]?\\?": \{\\?"id\\?": )\\?"[0-9a-f]+\\?", (\\?"sha256\\?": )\\?"[0-9a-f]{64}\\?"',
+                  r"\1<id>, \2<layer sha256>", text)
+    return re.sub(r'\n    customLayerData = \{\n        dictionary usdface = \{\n            string processor = '
+                  r'"(?:simulate|fit-muscles)"\n            string usdfaceVersion = "[^"]*"\n        \}\n    \}', "", text)
+
+
+def _without_block(text: str, opener: str) -> str:
+    """``text`` without each ``opener`` ... matching ``}`` block (and its line)."""
+    while (start := text.find(opener)) >= 0:
+        depth, i = 0, start + len(opener) - 1
+        while i < len(text):
+            depth += {"{": 1, "}": -1}.get(text[i], 0)
+            if depth == 0:
+                break
+            i += 1
+        line_start = text.rfind("\n", 0, start)
+        text = text[:line_start] + text[i + 1:]
+    return text
 
 
 def jobs(sa: Path, out: Path) -> dict[str, list[list[str]]]:
@@ -147,30 +188,66 @@ def _json_text(text: str) -> str | None:
 _PROV = re.compile(r'("?(?:provenance|usdface:provenance)"?\s*=\s*)(".*?(?<!\\)")', re.S)
 
 
-def _usd_text(path: Path) -> str:
+def _usd_text(path: Path, *, identity: bool = False) -> str:
     from pxr import Sdf
 
     text = Sdf.Layer.OpenAsAnonymous(str(path)).ExportToString()
     # provenance is JSON inside a string: compare it without the allowed fields
     for key in [k for k in ALLOWED if " " not in k] + [r"\w*Seconds", "seconds"]:
         text = re.sub(rf'(\\"{key}\\": )(\\"[^\\]*\\"|[0-9.eE+-]+)', r"\1<allowed>", text)
-    return text
+    return _identity_stripped(text) if identity else text
 
 
-def compare(before: Path, after: Path) -> tuple[list[str], list[str]]:
+def _capture_keys(before: Path, after: Path) -> dict[str, str]:
+    """{capture cache key before: after} from the shot summaries found at the same paths (the key
+    gained the identity version: IDENTITY_ALLOWED)."""
+    def key(path: Path):
+        try:
+            return json.loads(path.read_text())["steps"]["import-capture"]["cache"]["key"]
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+
+    keys = {}
+    for summary in before.rglob("summary.json"):
+        old, new = key(summary), key(after / summary.relative_to(before))
+        if old and new:
+            keys[old] = new
+    return keys
+
+
+def _renamed(name: Path, keys: dict) -> Path:
+    text = str(name)
+    for old, new in keys.items():
+        text = text.replace(f"{old[:2]}/{old}", f"{new[:2]}/{new}").replace(f"capture-{old}", f"capture-{new}")
+    return Path(text)
+
+
+def _json_identity(text: str, keys: dict) -> str:
+    """JSON text with the capture cache keys of before mapped to after's, and a cache entry's
+    record of its .usd* files (sha256, size) masked."""
+    for old, new in keys.items():
+        text = text.replace(old, new)
+    return re.sub(r'("[^"]*\.usd[ac]?": \{\s*"sha256": )"[0-9a-f]{64}",(\s*"size": )\d+', r'\1"<layer>",\g<2>0', text)
+
+
+def compare(before: Path, after: Path, *, identity: bool = False) -> tuple[list[str], list[str]]:
     """(differences, files compared) between two output folders."""
-    names_b = {p.relative_to(before) for p in before.rglob("*") if p.is_file()}
+    keys = _capture_keys(before, after) if identity else {}
+    originals = {_renamed(p.relative_to(before), keys): p for p in before.rglob("*") if p.is_file()}
+    names_b = set(originals)
     names_a = {p.relative_to(after) for p in after.rglob("*") if p.is_file()}
     diffs = [f"only before: {n}" for n in sorted(names_b - names_a)] + \
             [f"only after: {n}" for n in sorted(names_a - names_b)]
     for name in sorted(names_b & names_a):
-        b, a = (before / name).read_bytes(), (after / name).read_bytes()
+        b, a = originals[name].read_bytes(), (after / name).read_bytes()
         if a == b:
             continue
         if name.suffix == ".json":
             tb, ta = _json_text(b.decode()), _json_text(a.decode())
+            if identity and tb is not None and ta is not None:
+                tb, ta = _json_identity(tb, keys), _json_identity(ta, keys)
         elif name.suffix in (".usda", ".usdc", ".usd"):
-            tb, ta = _usd_text(before / name), _usd_text(after / name)
+            tb, ta = _usd_text(originals[name], identity=identity), _usd_text(after / name, identity=identity)
         else:
             tb = ta = None
         if tb is not None and tb == ta:
@@ -190,12 +267,16 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", nargs="+", default=["main", "all", "batch", "solve", "playblast"],
                     choices=["main", "all", "batch", "solve", "playblast", "tissue", "evaluate"])
     ap.add_argument("--keep", help="keep the outputs in this folder")
+    ap.add_argument("--identity", action="store_true", help="also allow what layer identities change on purpose "
+                    "(IDENTITY_ALLOWED)")
     args = ap.parse_args(argv)
     root = Path(args.keep or tempfile.mkdtemp(prefix="usdface-byteid-"))
     trees = {"before": checkout(args.before, root / "tree-before")}
     trees["after"] = checkout(args.after, root / "tree-after") if args.after else HERE
     print(f"before: {args.before}  after: {args.after or 'working tree ' + str(HERE)}")
     print("fields allowed to differ: " + "; ".join(f"{k} ({v})" for k, v in ALLOWED.items()))
+    if args.identity:
+        print("and, with --identity: " + "; ".join(f"{k} ({v})" for k, v in IDENTITY_ALLOWED.items()))
     failed = False
     for job in args.jobs:
         work = root / "work"
@@ -215,7 +296,7 @@ def main(argv=None) -> int:
             if (work / "sa" / "batch" / "out").exists():  # the batch writes beside its manifest
                 shutil.move(str(work / "sa" / "batch" / "out"), dest / "batch-out")
             results[side] = seconds
-        diffs, files = compare(root / "before" / job, root / "after" / job)
+        diffs, files = compare(root / "before" / job, root / "after" / job, identity=args.identity)
         failed |= bool(diffs)
         print(f"{job}: {len(files)} files, {'identical' if not diffs else f'{len(diffs)} difference(s)'} "
               f"(before {results['before']:.1f} s, after {results['after']:.1f} s)")

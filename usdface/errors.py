@@ -35,6 +35,12 @@ class MeshError(InputError):
     """A mesh has no faces, degenerate faces, or topology usdface cannot use."""
 
 
+class MixedLayersError(InputError):
+    """Layers made for different meshes, takes or bound markers given together (a binding made on
+    another face, an analysis of other bound points, an animation of another take): the message
+    names both files and the identities that differ (:mod:`usdface.usd.identity`)."""
+
+
 class PlausibilityError(InputError):
     """Data that reads fine but cannot be what it claims (a marker 50 cm off the face, a capture in
     metres declared cm...). The message names each finding and the ``--allow`` option that accepts

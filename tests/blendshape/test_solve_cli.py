@@ -312,3 +312,36 @@ def test_solve_in_memory_writes_no_file(tmp_path, sample_assets, monkeypatch):
     assert curves["weights"].shape == (120, 52) and curves["rate"] == 60.0
     assert np.array_equal(read_curves_layer(into)["weights"], curves["weights"])
     assert result.summary["output"].startswith("in-memory layer") and result.summary["residualMean"] > 0
+
+
+def test_blend_shapes_belong_to_the_rig_and_the_take(tmp_path, sample_assets, jaw):
+    """`run`'s blend-shape step refuses a binding made on another face than the rig's (the stylized
+    MakeHuman: same topology, other points), naming both; `solve`'s curves layer records the rig's
+    mesh, the bound markers and the take conditioned as `import-capture` would write it."""
+    from usdface import api, registry
+    from usdface.errors import InputError
+    from usdface.options import SolveOptions
+    from usdface.usd.layers import layer_provenance
+
+    sa = sample_assets
+    api.import_mesh(str(sa / "meshes" / "makehuman_hm08_face_cm.obj"), output=tmp_path / "mesh.usdc")
+    api.import_mesh(str(sa / "meshes" / "makehuman_hm08_face_stylized_cm.obj"), output=tmp_path / "stylized.usdc")
+    api.import_capture(str(sa / "capture" / "JawMoCap.ma"), {"stabilize": "auto", "trim": (300, 400)},
+                       output=tmp_path / "capture.usdc")
+    api.bind(tmp_path / "stylized.usdc", tmp_path / "capture.usdc",
+             {"layout": str(sa / "layouts" / "makehuman_hm08_face_stylized.layout.json")},
+             output=tmp_path / "binding.usda")
+    with pytest.raises(InputError) as err:
+        registry.call("blendshapes", tmp_path / "mesh.usdc", tmp_path / "capture.usdc", tmp_path / "binding.usda",
+                      options=SolveOptions(shapes=str(sa / "meshes" / "makehuman_hm08_face_units_cm.npz")),
+                      output=tmp_path / "never.usdc", csv=tmp_path / "never.csv")
+    assert err.value.exit_code == 2 and not (tmp_path / "never.usdc").exists()
+    assert str(err.value).startswith(f"binding {tmp_path / 'binding.usda'} was made for mesh ") and \
+        f"(2020 points), the rig's mesh {tmp_path / 'mesh.usdc'} is " in str(err.value)
+    # solve (default conditioning: stabilised) records what the curves belong to
+    out, _ = jaw
+    made = layer_provenance(out / "jaw.usdc")["identity"]
+    api.import_capture(str(sa / "capture" / "JawMoCap.ma"), {"stabilize": "auto"}, output=tmp_path / "jaw.usdc")
+    assert made["capture"] == layer_provenance(tmp_path / "jaw.usdc")["identity"]["capture"]
+    assert made["mesh"] == layer_provenance(tmp_path / "mesh.usdc")["identity"]["mesh"]
+    assert made["markers"]["count"] == 41

@@ -243,3 +243,27 @@ def test_chunk_frames_is_checked_before_any_work(bad):
     solver = RBFTransfer(d, d[:2], n_markers=2, widths=1.0).fit()
     with pytest.raises(OptionError, match="chunk_frames: expected an integer >= 1"):
         next(iter(solver.iter_chunks(np.zeros((4, 2, 3)), chunk_frames=bad)))
+
+
+def test_distances_and_transfer_refuse_layers_made_for_another_mesh(layers, tmp_path, capsys):
+    """Issue 20, case 2, as a user types it: a binding made on the MakeHuman face given with the
+    MediaPipe mesh (468 points) or the stylized MakeHuman (same 2020 points and topology, other
+    positions) exits 2 with one line naming both files; nothing is written."""
+    from tests.hostile import assert_one_line, run_in_process
+
+    analysis = tmp_path / "analysis.usdc"
+    assert main(["distances", "--mesh", str(layers["mesh_hm08"]), "--binding", str(layers["binding_hm08"]),
+                 "--method", "euclidean", "-o", str(analysis), "-q"]) == 0
+    for other, points in (("mesh_mediapipe", 468), ("mesh_stylized", 2020)):
+        out = tmp_path / f"never_{other}.usdc"
+        rc, lines = run_in_process(capsys, "distances", "--mesh", layers[other], "--binding", layers["binding_hm08"],
+                                   "-o", out)
+        assert_one_line(rc, lines, code=2, command="distances",
+                        contains=(f"binding {layers['binding_hm08']} was made for mesh ",
+                                  f"(2020 points), mesh {layers[other]} is ", f"({points} points)"))
+        rc, lines = run_in_process(capsys, "transfer", "--mesh", layers[other], "--capture", layers["jaw_stab"],
+                                   "--binding", layers["binding_hm08"], "--analysis", analysis, "-o", out)
+        assert_one_line(rc, lines, code=2, command="transfer",
+                        contains=(f"binding {layers['binding_hm08']} was made for mesh ",
+                                  f"(2020 points), mesh {layers[other]} is ", f"({points} points)"))
+        assert not out.exists()

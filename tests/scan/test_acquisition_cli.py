@@ -61,6 +61,15 @@ def test_stereo_then_register(scene_files, sample_assets, capsys):
     assert err < e_sim  # better than the best similarity, through a real stereo scan
     carried = read_layout(d / "registered.layout.json")
     assert carried.names == read_layout(lay).names
+    # both are mesh layers: each records its own mesh, as read back (issue 20: layers know what
+    # they belong to), and `check` finds them consistent
+    from usdface import api
+    from usdface.usd.identity import mesh_record
+    from usdface.usd.layers import layer_provenance
+
+    for name, mesh in (("scan.usdc", scan), ("registered.usdc", reg)):
+        assert layer_provenance(d / name)["identity"] == {"version": 1, "mesh": mesh_record(mesh)}
+        assert not [f for f in api.check(d / name).summary["findings"] if f["rule"] == "usdface:LayerIdentity"]
     # the registered mesh and its carried layout drive the whole pipeline on a real capture
     assert run("run", "--mesh", d / "registered.usdc", "--capture", sample_assets / "capture" / "JawMoCap.ma",
                "--layout", d / "registered.layout.json", "-o", d / "shot") == 0

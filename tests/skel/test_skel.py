@@ -338,3 +338,33 @@ def test_joint_names_are_valid_identifiers_with_a_mapping():
     assert all(Sdf.Path.IsValidIdentifier(n) for n in names)
     assert mapping == {"Lip_Upper_1": "Lip.Upper-1", "_3D": "3D", "a_b": "a.b", "a_b_2": "a_b", "Head_2": "Head"}
     assert sanitize_identifier("") == "_"
+
+
+def test_a_skeleton_is_made_from_layers_of_one_mesh_and_records_its_take(ucli, jaw, capsys, sample_assets):
+    """`skel` refuses a binding made on another face (the stylized MakeHuman: same topology, other
+    points) with one line naming both files; its layer records the mesh, bound points and take it
+    was made from (issue 20, item 2)."""
+    from usdface.usd.capture_layer import read_capture_layer
+    from usdface.usd.layers import layer_provenance
+    from usdface.usd.mesh_layer import read_mesh_layer
+
+    stylized = jaw["dir"] / "stylized.usdc"
+    assert ucli("import-mesh", sample_assets / "meshes" / "makehuman_hm08_face_stylized_cm.obj", "-o", stylized,
+                "-q") == 0
+    out = jaw["dir"] / "never_mixed.usdc"
+    capsys.readouterr()
+    code = ucli("skel", "--mesh", stylized, "--capture", jaw["capture"], "--binding", jaw["binding"], "--analysis",
+                jaw["analysis"], "-o", out)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and not out.exists(), err
+    assert err[0].startswith(f"usdface skel: error: binding {jaw['binding']} was made for mesh ") and \
+        f"(2020 points), mesh {stylized} is " in err[0]
+    from usdface.usd.identity import capture_record, mesh_record  # (after the refusal: new in issue 20)
+
+    assert ucli("skel", "--mesh", jaw["mesh"], "--capture", jaw["capture"], "--binding", jaw["binding"],
+                "--analysis", jaw["analysis"], "--skin-weights", "exact", "--no-verify", "-o",
+                jaw["dir"] / "skel_identity.usdc", "-q") == 0
+    ident = layer_provenance(jaw["dir"] / "skel_identity.usdc")["identity"]
+    assert ident["mesh"] == mesh_record(read_mesh_layer(jaw["mesh"])[0])
+    assert ident["capture"] == capture_record(read_capture_layer(jaw["capture"]))
+    assert ident["markers"] == layer_provenance(jaw["binding"])["identity"]["markers"]

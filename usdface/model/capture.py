@@ -141,3 +141,23 @@ class Capture:
             raise MarkerError(
                 f"capture{(' ' + self.source) if self.source else ''}: no valid sample for marker(s) {list_names(dead)}"
             )
+
+
+def hold_invalid(positions: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Replace invalid samples by the last valid one (the first valid one before any).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (F, M, D)
+    valid : ndarray, shape (F, M), bool
+
+    Returns
+    -------
+    ndarray, shape (F, M, D), with no NaN for markers that have at least one valid sample.
+    """
+    f = positions.shape[0]
+    idx = np.where(valid, np.arange(f)[:, None], -1)
+    np.maximum.accumulate(idx, axis=0, out=idx)
+    first = valid.argmax(axis=0)
+    idx = np.where(idx < 0, first[None, :], idx)
+    return np.take_along_axis(positions, idx[:, :, None], axis=0)

@@ -12,6 +12,7 @@ the shot stage and the capture layer are read here (:mod:`usdface.usd`) and hand
 from __future__ import annotations
 
 import json
+import logging
 import os
 import time
 from pathlib import Path
@@ -25,6 +26,8 @@ from ..report.output import MediaFolder, check_report_output, write_report
 __all__ = ["BATCH_PLAYBLAST_COLOR", "REPORT_PLAYBLAST_COLOR", "batch_report", "check_report_output", "read_shot",
            "report"]
 
+log = logging.getLogger("usdface")
+
 #: colour mode of a report's playblast: the transfer's displacement, one scale over the take
 REPORT_PLAYBLAST_COLOR = "displacement"
 BATCH_PLAYBLAST_COLOR = "displacement"
@@ -35,6 +38,7 @@ def read_shot(outdir):
     :class:`usdface.usd.playback.ShotReader`). Raises InputError naming what is missing."""
     from ..report.data import CAPTURE_FILE, find_shot, gather_shot, load_run_summary
     from ..usd.capture_layer import read_capture_layer
+    from ..usd.identity import mixed_layers
     from ..usd.playback import ShotReader
 
     outdir = Path(outdir)
@@ -43,7 +47,17 @@ def read_shot(outdir):
     reader = ShotReader.open(shot)
     capture_path = outdir / CAPTURE_FILE
     capture = read_capture_layer(capture_path) if capture_path.is_file() else None
-    return gather_shot(outdir, summary, reader, shot=shot, capture=capture), reader
+    data = gather_shot(outdir, summary, reader, shot=shot, capture=capture)
+    # a QC page shows a mix (first among its warnings) rather than refusing: it is where one looks
+    data.mixed_layers = mixed_layers(shot)
+    return data, reader
+
+
+def _warn_mixed(d) -> None:
+    """One line on the terminal for a shot whose layers disagree (the page lists them first)."""
+    from ..usd.identity import mixed_layers_warning
+
+    log.warning("%s", mixed_layers_warning(d.shot, d.mixed_layers))
 
 
 def _render_playblast(shot, media: MediaFolder, name: str, *, size, color: str, workers) -> str:
@@ -72,6 +86,8 @@ def report(outdir, *, options: ReportOptions, output) -> Result:
     page = Page(f"usdface QC report: {d.name}", f"{d.outdir}")
     pictures = shot_pictures(d, reader)
     render = not options.no_playblast and options.playblast is None
+    if d.mixed_layers and not render:  # (the playblast says it when it renders)
+        _warn_mixed(d)
     movie = media = None
     try:
         if render:
@@ -244,6 +260,8 @@ def _batch_sections(page, sections: list, media: MediaFolder | None, options: Re
 
     for d, reader, anchor in sections:
         movie = None
+        if d.mixed_layers and media is None:  # (the playblast says it when it renders)
+            _warn_mixed(d)
         if media is not None:
             movie = _render_playblast(d.shot, media, d.name, size=options.playblast_size, color=BATCH_PLAYBLAST_COLOR,
                                       workers=options.workers)

@@ -73,6 +73,7 @@ def _solve(mesh, capture, options: SolveOptions, files, corrective) -> Result:
     from ..fileutil import StagedOutputs
     from ..mesh.judged_binding import bind_and_judge
     from ..usd.curves_files import write_curve_files
+    from ..usd.identity import capture_record, identity, markers_record, mesh_record
     from ..usd.inputs import load_capture
     from ..usd.layers import describe, provenance
 
@@ -92,8 +93,11 @@ def _solve(mesh, capture, options: SolveOptions, files, corrective) -> Result:
                                 key_tolerance=delivery.key_tolerance, head_motion=take.head_motion)
     # D2: time code = frame index from 0 (a trimmed take too) unless --start-frame says otherwise
     start_out = 0 if o.start_frame is None else int(round(o.start_frame * curves.rate / take.rate))
+    # the take conditioned, identified as the capture layer `import-capture` would write from it
     prov = provenance("solve", options=_recorded(o, params, take),
-                      inputs={"mesh": mesh, "shapes": _shapes_file(o.shapes), "capture": capture, "layout": o.layout})
+                      inputs={"mesh": mesh, "shapes": _shapes_file(o.shapes), "capture": capture, "layout": o.layout},
+                      identity=identity(mesh=mesh_record(rig.mesh), markers=markers_record(binding),
+                                        capture=capture_record(cap)))
     summary = take_summary(take, curves, rig, binding, output=_named(outs["-o"]), conditioning=reports)
     corrected = None
     if "--corrective" in outs:
@@ -201,7 +205,8 @@ def _apply(curves_path, mesh, options: SolveOptions, files) -> Result:
     delivered = deliverable_curves(rig.names, w, rate=read.rate, fps=delivery.fps, key_tolerance=delivery.key_tolerance,
                                    head_motion=read.head_motion)
     prov = provenance("solve --apply", options={"fps": delivery.fps, "key_tolerance": delivery.key_tolerance},
-                      inputs={"curves": curves_path, "mesh": mesh, "shapes": _shapes_file(o.shapes)})
+                      inputs={"curves": curves_path, "mesh": mesh, "shapes": _shapes_file(o.shapes)},
+                      identity=_applied_identity(cp, rig))
     start_out = int(round(read.start * delivered.rate / read.rate))
     with StagedOutputs() as staged:
         written = write_curve_files(delivered, rig, regions, _files_of(outs), staged=staged, prov=prov,
@@ -216,6 +221,16 @@ def _apply(curves_path, mesh, options: SolveOptions, files) -> Result:
                         f"({rig.n_shapes} shapes), {summary['frames']} frames at {delivered.rate:g} fps"] + \
         ([f"  dropped (no such shape): {', '.join(dropped)}"] if dropped else [])
     return Result.from_summary(summary, layers={"output": outs["-o"]}, files=_file_outputs(outs))
+
+
+def _applied_identity(curves_path: Path, rig) -> dict:
+    """The identity of curves played on ``rig``: its mesh, and the take the curves were solved from
+    when a curves layer records it (the markers were bound to another mesh: not carried)."""
+    from ..usd.identity import claims_of, identity, mesh_record
+    from ..usd.layers import USD_SUFFIXES
+
+    take = claims_of(curves_path, "curves").get("capture") if curves_path.suffix.lower() in USD_SUFFIXES else None
+    return identity(mesh=mesh_record(rig.mesh), capture=take)
 
 
 def _on_rig(read, rig, path) -> tuple[np.ndarray, list, list]:

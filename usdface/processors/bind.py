@@ -24,6 +24,7 @@ def bind(mesh_path, capture_path, *, options: BindOptions, output) -> Result:
     from ..errors import OptionError
     from ..mesh.judged_binding import bind_and_judge
     from ..usd.capture_layer import read_capture_layer
+    from ..usd.identity import identity, markers_record, mesh_record
     from ..usd.mesh_layer import read_mesh_layer, write_binding_layer
 
     layout, auto, retarget, allow = options.layout, options.auto, options.retarget, options.allow
@@ -39,7 +40,9 @@ def bind(mesh_path, capture_path, *, options: BindOptions, output) -> Result:
     recorded = {"layout": layout is not None, "auto": auto, "retarget": retarget}
     if allow:
         recorded["allow"] = sorted(allow)
-    prov = provenance("bind", options=recorded, inputs={"mesh": mesh_path, "capture": capture_path, "layout": layout})
+    # the mesh and the bound points it was made for; no take: a binding serves every take of the character
+    prov = provenance("bind", options=recorded, inputs={"mesh": mesh_path, "capture": capture_path, "layout": layout},
+                      identity=identity(mesh=mesh_record(mesh), markers=markers_record(binding)))
     write_binding_layer(out, binding, mesh_path=mesh_path, capture_path=capture_path, mesh_units=mesh.units,
                         prov=prov)
     order = np.argsort(res)[::-1]

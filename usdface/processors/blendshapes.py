@@ -40,6 +40,7 @@ def blendshapes(mesh, capture, binding, *, options: SolveOptions, output, csv, l
     from ..fileutil import StagedOutputs
     from ..usd.capture_layer import read_capture_layer
     from ..usd.curves_files import CurveFiles, write_curve_files
+    from ..usd.identity import capture_record, claims_of, identity, markers_record, mesh_record, verify
     from ..usd.layers import describe, is_in_memory, open_stage, provenance
     from ..usd.mesh_layer import read_binding
     from ..usd.outputs import check_outputs
@@ -52,7 +53,10 @@ def blendshapes(mesh, capture, binding, *, options: SolveOptions, output, csv, l
     rig, regions = load_rig(mesh, shapes, mesh_units=options.mesh_units)
     cap = read_capture_layer(capture)
     bound = read_binding(open_stage(binding, what="binding"), source=describe(binding))
-    if bound.triangle_vertices.max() >= rig.n_points:
+    rig_mesh = mesh_record(rig.mesh)
+    verify(claims_of(binding, "binding"), mesh=(f"the rig's mesh {describe(mesh)}", rig_mesh),
+           remedy="bind the capture on the rig's mesh (`usdface bind`)")
+    if bound.triangle_vertices.max() >= rig.n_points:  # a binding of usdface 0.2, unverified
         raise InputError(f"binding {describe(binding)} refers to vertex {int(bound.triangle_vertices.max())}, the rig "
                          f"{rig.source} has {rig.n_points} points")
     take = solve_take(rig, cap, bound, params)
@@ -62,7 +66,8 @@ def blendshapes(mesh, capture, binding, *, options: SolveOptions, output, csv, l
     prov = provenance("solve", options={**params.record(), "fps": delivery.fps, "key_tolerance": delivery.key_tolerance,
                                         "head_motion": params.head_motion},
                       inputs={"mesh": mesh, "capture": capture, "binding": binding,
-                              "shapes": shapes if shapes and Path(shapes).is_file() else None})
+                              "shapes": shapes if shapes and Path(shapes).is_file() else None},
+                      identity=identity(mesh=rig_mesh, markers=markers_record(bound), capture=capture_record(cap)))
     out = outs["-o"]
     summary = take_summary(take, curves, rig, bound, output=describe(out) if is_in_memory(out) else str(out),
                            conditioning={})

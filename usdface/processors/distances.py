@@ -14,7 +14,7 @@ from ..distance.matrices import DistanceMatrix, compute_distance_matrix
 from ..errors import MeshError, OptionError
 from ..options import DistanceOptions
 from ..registry import Result
-from ..usd.layers import check_output_path, open_stage, provenance
+from ..usd.layers import check_output_path, describe, open_stage, provenance
 
 
 def distances(mesh_path, binding_path, *, options: DistanceOptions, output, cache=None) -> Result:
@@ -26,6 +26,7 @@ def distances(mesh_path, binding_path, *, options: DistanceOptions, output, cach
     times are reported in the summary only, never in the layer, so the layer is reproducible.
     """
     from ..usd.analysis_layer import write_analysis_layer
+    from ..usd.identity import claims_of, identity, markers_record, mesh_record, verify
     from ..usd.mesh_layer import read_binding, read_mesh_layer
 
     params = options.parameters()
@@ -33,7 +34,10 @@ def distances(mesh_path, binding_path, *, options: DistanceOptions, output, cach
     out = check_output_path(output, inputs={"--mesh": mesh_path, "--binding": binding_path})
     mesh, regions = read_mesh_layer(mesh_path)
     binding = read_binding(open_stage(binding_path, what="binding"), source=str(binding_path))
-    if binding.triangle_vertices.max() >= mesh.n_points:
+    mesh_rec = mesh_record(mesh)
+    verify(claims_of(binding_path, "binding"), mesh=(f"mesh {describe(mesh_path)}", mesh_rec),
+           remedy="bind the capture on this mesh (`usdface bind`)")
+    if binding.triangle_vertices.max() >= mesh.n_points:  # a binding of usdface 0.2, unverified
         raise OptionError(f"binding {binding_path} refers to vertex {int(binding.triangle_vertices.max())} but mesh "
                           f"{mesh_path} has {mesh.n_points} points: they belong to different meshes")
     if mesh.units is None:
@@ -58,7 +62,9 @@ def distances(mesh_path, binding_path, *, options: DistanceOptions, output, cach
     backend = matrix.backend
     params = matrix.parameters
     cons = matrix.constraint_vertices
-    prov = provenance("distances", options=options, inputs={"mesh": mesh_path, "binding": binding_path})
+    # no take: the analysis (and the cache) serve every take of the character
+    prov = provenance("distances", options=options, inputs={"mesh": mesh_path, "binding": binding_path},
+                      identity=identity(mesh=mesh_rec, markers=markers_record(binding)))
     write_analysis_layer(out, [matrix], mesh_path=mesh_path, units=mesh.units, prov=prov)
     summary = {"output": str(out), "method": method, "backend": backend, "vertices": mesh.n_points,
                "markers": binding.n_markers, "constraintCentres": int(cons.size), "seconds": round(seconds, 4),

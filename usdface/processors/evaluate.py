@@ -103,11 +103,14 @@ def _binding(mesh, mesh_path, options: EvaluateOptions):
         from ..mesh.layout_binding import binding_from_layout
 
         return binding_from_layout(mesh, read_layout(options.layout))
+    from ..usd.identity import claims_of, mesh_record, verify
     from ..usd.layers import open_stage
     from ..usd.mesh_layer import read_binding
 
     binding = read_binding(open_stage(options.binding, what="binding"), source=str(options.binding))
-    if binding.triangle_vertices.max() >= mesh.n_points:
+    verify(claims_of(options.binding, "binding"), mesh=(f"mesh {describe(mesh_path)}", mesh_record(mesh)),
+           remedy="bind on this mesh (`usdface bind`), or place the markers with --layout")
+    if binding.triangle_vertices.max() >= mesh.n_points:  # a binding of usdface 0.2, unverified
         raise OptionError(f"binding {options.binding} refers to vertex {int(binding.triangle_vertices.max())} but "
                           f"mesh {describe(mesh_path)} has {mesh.n_points} points")
     return binding

@@ -3,6 +3,7 @@ layer (.usdc), with a shot stage (the face and the captured markers) beside it."
 from __future__ import annotations
 
 import json
+import logging
 import math
 import time
 from pathlib import Path
@@ -14,6 +15,8 @@ from ..fileutil import refuse_overwriting_inputs
 from ..options import FitMusclesOptions
 from ..registry import Result
 from ..usd.layers import check_output_path, describe, is_in_memory, provenance
+
+log = logging.getLogger("usdface")
 
 #: frames written between two saves of the animation layer
 _CHUNK = 64
@@ -33,8 +36,9 @@ def fit_muscles(mesh_path, rig_path, capture_path, binding_path, *, options: Fit
     from ..tissue.animate import ControlSamples
     from ..tissue.fit import capture_displacements, fit_sequence, linear_response
     from ..tissue.simulation import build_simulator
+    from ..usd.identity import capture_record, claims_of, identity, markers_record, verify
     from ..usd.muscle_layer import read_rig_layer, write_tissue_animation_layer, write_tissue_shot
-    from ..usd.tissue_inputs import load_tissue_mesh
+    from ..usd.tissue_inputs import check_rig_mesh, load_tissue_mesh
 
     inputs = {"--mesh": mesh_path, "--rig": rig_path, "--capture": capture_path, "--binding": binding_path}
     out = check_output_path(output, suffixes=(".usdc", ".usd"), inputs=inputs)
@@ -42,8 +46,13 @@ def fit_muscles(mesh_path, rig_path, capture_path, binding_path, *, options: Fit
     _check_report_folder(report)
     t0 = time.perf_counter()
     mesh, regions = load_tissue_mesh(mesh_path)
+    on_mesh = check_rig_mesh(rig_path, mesh_path, mesh)
     rig = read_rig_layer(rig_path, units=mesh.units)
     capture, binding = _read_capture_and_binding(capture_path, binding_path)
+    verify(claims_of(binding_path, "binding"), mesh=(f"mesh {describe(mesh_path)}", on_mesh),
+           remedy="bind the capture on this mesh (`usdface bind`)")
+    # the take as its layer holds it; the markers as bound (a binding serves every take: no take)
+    made_of = identity(mesh=on_mesh, markers=markers_record(binding), capture=capture_record(capture))
     disp, capture = capture_displacements(capture, binding, stabilize=options.stabilize)
     sel = _selected_frames(disp.shape[0], options)
     disp = disp[sel]
@@ -66,13 +75,15 @@ def fit_muscles(mesh_path, rig_path, capture_path, binding_path, *, options: Fit
                                               "regularization": options.regularization,
                                               "stabilize": options.stabilize, "integrator": sim.integrator,
                                               "frames": options.frames, "tissue": sim.model.options.to_dict()},
-                      inputs={"mesh": mesh_path, "rig": rig_path, "capture": capture_path, "binding": binding_path})
+                      inputs={"mesh": mesh_path, "rig": rig_path, "capture": capture_path, "binding": binding_path},
+                      identity=made_of)
     chunks = ((slice(s, min(s + _CHUNK, len(sel))), res.skin[s:s + _CHUNK]) for s in range(0, len(sel), _CHUNK))
     write_tissue_animation_layer(out, chunks, mesh_path=mesh_path, rig_path=rig_path, mesh=mesh, controls=controls,
                                  prov=prov)
     # the shot adds the binding layer: the captured markers beside the simulated face
-    shot = write_tissue_shot(out, [out, binding_path], rate=capture.rate, start=float(codes[0]),
-                             end=float(codes[-1]), units=mesh.units, stabilized_capture=capture.head_motion is not None)
+    shot = write_tissue_shot(out, _shot_layers(out, binding_path, made_of["capture"], capture_path),
+                             rate=capture.rate, start=float(codes[0]), end=float(codes[-1]), units=mesh.units,
+                             stabilized_capture=capture.head_motion is not None, processor="fit-muscles")
     summary = {"output": str(out), "shot": shot, "frames": int(len(sel)), "rate": rate, "errors": res.errors,
                "perMarkerRms": res.per_marker, "meanContraction": dict(zip(names, res.controls.mean(axis=0).tolist())),
                "maxContraction": dict(zip(names, res.controls.max(axis=0).tolist())),
@@ -92,6 +103,24 @@ def _read_capture_and_binding(capture_path, binding_path):
     capture = read_capture_layer(capture_path)
     binding = read_binding(open_stage(binding_path, what="binding"), source=describe(binding_path))
     return capture, binding
+
+
+def _shot_layers(out, binding_path, take: dict, capture_path) -> list:
+    """The layers of the shot beside ``out``: the animation and the binding (whose capture shows
+    the markers), or the animation alone, with a warning, when the binding references another take
+    than the one fitted (a binding serves every take; its markers would not be this take's)."""
+    from ..model.identity import short
+    from ..usd.identity import composed_take
+    from ..usd.muscle_layer import shot_path_for
+
+    shown = composed_take(binding_path)
+    if is_in_memory(out) or shown is None or shown[1].get("sha256") == take.get("sha256"):
+        return [out, binding_path]
+    log.warning("%s", f"shot {shot_path_for(out)}: binding {describe(binding_path)} shows the markers of take "
+                f"{short(shown[1].get('sha256'))} ({Path(shown[0]).name}), the fit is of take {short(take['sha256'])} "
+                f"(capture {describe(capture_path)}): the shot holds the animation without markers; bind this take "
+                "to see them")
+    return [out]
 
 
 def _selected_frames(n_frames: int, options: FitMusclesOptions) -> np.ndarray:

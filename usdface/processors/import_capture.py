@@ -9,6 +9,7 @@ from ..capture.conditioning import Conditioning, condition_capture
 from ..errors import OptionError
 from ..options import CaptureOptions
 from ..registry import Result
+from ..usd.identity import capture_record, identity
 from ..usd.inputs import load_capture
 from ..usd.layers import check_output_path, provenance
 
@@ -49,13 +50,16 @@ def import_capture(source, *, options: CaptureOptions, output, cache=None) -> Re
     if cache is None:
         return _result(_import_capture(input, out, options, fill_gaps), out)
     from ..cache import content_key
+    from ..model.identity import IDENTITY_VERSION
     from ..usd.layers import file_digest
 
     if not Path(input).is_file():
         from ..errors import InputError
 
         raise InputError(f"capture {input}: no such file")
-    key = content_key("capture", Path(input).name, file_digest(input), out.suffix.lower(), options)
+    # the identity's version: entries of layers written before identities (or with other ones) are not reused
+    key = content_key("capture", Path(input).name, file_digest(input), out.suffix.lower(), options,
+                      {"identity": IDENTITY_VERSION})
     name = "capture" + out.suffix.lower()
     with cache.lock("capture", key):
         entry = cache.get("capture", key)
@@ -108,7 +112,8 @@ def _import_capture(input, out, options, fill_gaps) -> dict:
         trim=tuple(trim) if trim is not None else None, fill_gaps=fill_gaps, filter=filter, cutoff=cutoff,
         resample=resample, neutral=neutral, stabilize=stabilize, start_frame=start_frame,
         allow=tuple(options.get("allow", ())), drop_outliers=bool(options.get("drop_outliers"))))
-    prov = provenance("import-capture", options=options, inputs={"capture": input})
+    prov = provenance("import-capture", options=options, inputs={"capture": input},
+                      identity=identity(capture=capture_record(capture)))  # the take as the layer holds it
     write_capture_layer(out, capture, prov=prov)
     valid = capture.valid
     summary = {

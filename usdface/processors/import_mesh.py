@@ -7,6 +7,7 @@ import numpy as np
 
 from ..options import ImportMeshOptions
 from ..registry import Result
+from ..usd.identity import identity, mesh_record
 from ..usd.inputs import load_mesh
 from ..usd.layers import check_output_path, provenance
 
@@ -33,7 +34,8 @@ def import_mesh(source, *, options: ImportMeshOptions, output) -> Result:
         log.warning("%s", surface.message(str(input)))
     if not regions:
         regions = find_hole_regions(mesh, loops=boundary_loops(subset_faces(mesh, surface.faces)))
-    prov = provenance("import-mesh", options={"units": units, "up_axis": up_axis}, inputs={"mesh": input})
+    prov = provenance("import-mesh", options={"units": units, "up_axis": up_axis}, inputs={"mesh": input},
+                      identity=identity(mesh=mesh_record(mesh)))  # the mesh as written: Y-up, float32
     write_mesh_layer(out, mesh, regions, prov=prov)
     sizes = {int(k): int(v) for k, v in zip(*np.unique(mesh.face_vertex_counts, return_counts=True))}
     summary = {

@@ -34,6 +34,7 @@ def lift(tracks, mesh, *, options: LiftOptions, output) -> Result:
     from ..model.capture import Capture
     from ..capture.plausibility import report
     from ..usd.capture_layer import write_capture_layer
+    from ..usd.identity import capture_record, identity
     from ..usd.inputs import load_mesh
     from ..usd.track_inputs import read_tracks
 
@@ -45,7 +46,7 @@ def lift(tracks, mesh, *, options: LiftOptions, output) -> Result:
     if not is_in_memory(mesh) and not Path(mesh).is_file():
         raise InputError(f"--mesh {mesh}: no such file")
     face, _ = load_mesh(mesh, units=o.mesh_units)
-    names, tri, bary, place_src = _bound_surface(face, o.binding, o.layout)
+    names, tri, bary, place_src = _bound_surface(face, mesh, o.binding, o.layout)
     check_marker_sets(capture_2d.names, names, tracks=f"tracks {describe(tracks)}", layout=place_src)
     order = [names.index(n) for n in capture_2d.names]  # layout rows in the tracks' order
     tri, bary = np.asarray(tri)[order], np.asarray(bary)[order]
@@ -76,8 +77,11 @@ def lift(tracks, mesh, *, options: LiftOptions, output) -> Result:
         from ..capture.plausibility import parse_allow
 
         recorded["allow"] = sorted(parse_allow(o.allow))
+    # the lifted layer is a take: it records its own identity, as `import-capture` does (no mesh: a
+    # capture may be bound on another face, by the same layout or retargeted)
     prov = provenance("lift", options=recorded,
-                      inputs={"tracks": tracks, "mesh": mesh, "binding": o.binding, "layout": o.layout})
+                      inputs={"tracks": tracks, "mesh": mesh, "binding": o.binding, "layout": o.layout},
+                      identity=identity(capture=capture_record(capture)))
     write_capture_layer(out, capture, prov=prov)
     moved = np.linalg.norm(disp, axis=2)
     where = describe(out) if is_in_memory(out) else str(out)
@@ -105,15 +109,19 @@ def _name(source) -> str:
     return describe(source) if is_in_memory(source) else Path(source).name
 
 
-def _bound_surface(mesh, binding, layout):
-    """(names, triangle_vertices, barycentrics, source) of the markers' bound points."""
+def _bound_surface(mesh, mesh_source, binding, layout):
+    """(names, triangle_vertices, barycentrics, source) of the markers' bound points; a binding made
+    for another mesh than ``mesh`` (read from ``mesh_source``) is refused (MixedLayersError)."""
     if (binding is None) == (layout is None):
         raise OptionError("lift: give exactly one of --binding BINDING.usda or --layout LAYOUT.json")
     if binding is not None:
+        from ..usd.identity import claims_of, mesh_record, verify
         from ..usd.layers import open_stage
         from ..usd.mesh_layer import read_binding
 
         b = read_binding(open_stage(binding, what="binding"), source=str(binding))
+        verify(claims_of(binding, "binding"), mesh=(f"mesh {describe(mesh_source)}", mesh_record(mesh)),
+               remedy="bind on this mesh (`usdface bind`), or lift with --layout")
         return list(b.names), b.triangle_vertices, b.barycentrics, str(binding)
     from ..mesh.surface_points import project_to_surface
     from ..mesh.layout import read_layout

@@ -25,6 +25,8 @@ def muscles(mesh_path, *, options: MusclesOptions, output) -> Result:
     """
     from ..tissue.rig import default_rig, face_landmarks, landmark_correspondence, warp_rig
     from ..tissue.simulation import build_simulator
+    from ..usd.identity import claims_of, identity, mesh_record, verify
+    from ..usd.layers import describe
     from ..usd.muscle_layer import read_rig_layer, write_rig_layer
     from ..usd.tissue_inputs import load_tissue_mesh, marker_positions
 
@@ -34,6 +36,10 @@ def muscles(mesh_path, *, options: MusclesOptions, output) -> Result:
                                             "--from-rig": from_rig})
     t0 = time.perf_counter()
     mesh, regions = load_tissue_mesh(mesh_path)
+    on_mesh = mesh_record(mesh)
+    if binding is not None and layout is None:  # the binding's bound points index this mesh's vertices
+        verify(claims_of(binding, "binding"), mesh=(f"mesh {describe(mesh_path)}", on_mesh),
+               remedy="bind the capture on this mesh (`usdface bind`), or place the muscles with --layout")
     markers = marker_positions(mesh, layout=layout, binding=binding)
     if from_rig is not None:
         src = read_rig_layer(from_rig, units=mesh.units)
@@ -49,7 +55,8 @@ def muscles(mesh_path, *, options: MusclesOptions, output) -> Result:
     build_simulator(mesh, regions, rig)
     prov = provenance("muscles", options={"layout": layout is not None, "binding": binding is not None,
                                           "fromRig": from_rig is not None, "forces": forces, "tissue": tissue},
-                      inputs={"mesh": mesh_path, "layout": layout, "binding": binding, "fromRig": from_rig})
+                      inputs={"mesh": mesh_path, "layout": layout, "binding": binding, "fromRig": from_rig},
+                      identity=identity(mesh=on_mesh))  # a rig is made for one face; no markers, no take
     write_rig_layer(out, rig, mesh_path=mesh_path, prov=prov)
     lin = [m.name for m in rig.muscles if m.type == "linear"]
     sph = [m.name for m in rig.muscles if m.type == "sphincter"]

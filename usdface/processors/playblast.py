@@ -9,6 +9,7 @@ extra); the movie is written atomically.
 """
 from __future__ import annotations
 
+import logging
 import time as _time
 from pathlib import Path
 
@@ -18,6 +19,8 @@ from ..options import PlayblastOptions
 from ..registry import Result
 
 __all__ = ["playblast"]
+
+log = logging.getLogger("usdface")
 
 
 def _check_output(shot, output: Path, o: PlayblastOptions) -> None:
@@ -72,6 +75,7 @@ def playblast(shot, *, options: PlayblastOptions, output) -> Result:
         raise OptionError("--color error needs --reference SHOT (the points to compare against)")
     params = o.parameters()
     plan = plan_playblast(open_playblast_shots(shot, params), params)
+    mixed = _mixed_layers(shot, o)
     reader, times = plan.reader, plan.times
     meta = {"title": reader.name, "comment": f"usdface playblast of {reader.path.name}"}
     bar = progress(total=len(times), desc="playblast", unit="frame")
@@ -84,7 +88,25 @@ def playblast(shot, *, options: PlayblastOptions, output) -> Result:
             bar.close()
     seconds = _time.perf_counter() - started
     summary = _summary(shot, output, o, plan, workers=workers, seconds=seconds, info=movie_info(output))
+    if mixed:
+        summary["mixedLayers"] = mixed
     return Result.from_summary(summary, files={"output": str(output)})
+
+
+def _mixed_layers(shot, o: PlayblastOptions) -> dict:
+    """{shot: errors} of the shots played (and the reference) whose layers disagree, each warned on
+    one line. A playblast renders what a shot composes, mixed or not: it is how one looks at a
+    shot, and `usdface check` (exit 1) is the gate that refuses it."""
+    from ..usd.identity import mixed_layers, mixed_layers_warning
+
+    found = {}
+    for path in (shot, o.compare, o.reference):
+        if path is not None and str(path) not in found:
+            errors = mixed_layers(path)
+            if errors:
+                log.warning("%s", mixed_layers_warning(path, errors))
+                found[str(path)] = errors
+    return found
 
 
 def _summary(shot, output: Path, o: PlayblastOptions, plan, *, workers: int, seconds: float, info: dict) -> dict:

@@ -47,6 +47,7 @@ def register(generic, scan, *, options: RegisterOptions, output, layout_output=N
     """
     from ..mesh.layout import read_layout
     from ..scan.register import HOLE_RINGS, GenericRegistration
+    from ..usd.identity import identity, mesh_record
     from ..usd.mesh_layer import read_mesh_layer
 
     o = options
@@ -77,12 +78,15 @@ def register(generic, scan, *, options: RegisterOptions, output, layout_output=N
     loc = _check_on_surface(S, smesh, SL, names, factor)
     reg = GenericRegistration(mesh, regions, glay.positions(mesh, names), hole_rings=HOLE_RINGS)
     res = reg.register(S, smesh.triangles(), SL, o.registration(), locator=loc)
+    registered = mesh.with_points(res.points)
+    # a new mesh (the generic's topology in the scan's place): the layer records its own identity
     prov = provenance("register", options={"iterations": o.iterations, "border": o.border, "field": o.field,
                                            "holeRings": HOLE_RINGS, "landmarks": names},
                       inputs={"generic": generic, "scan": scan, "landmarks": o.landmarks,
-                              "genericLandmarks": generic_landmarks, "layout": o.layout})
+                              "genericLandmarks": generic_landmarks, "layout": o.layout},
+                      identity=identity(mesh=mesh_record(registered)))
     carried = (lay_out, _carried_layout(lay_in, mesh, res.points)) if lay_in is not None else None
-    _write(out, mesh.with_points(res.points), regions, prov, carried)
+    _write(out, registered, regions, prov, carried)
     return _result(out, generic, scan, mesh, regions, res, names, o.iterations, carried, t0)
 
 

@@ -51,6 +51,7 @@ def shapes_transfer(target, landmarks, *, options: ShapesTransferOptions, output
     from ..scan.landmarks import FACE_LANDMARKS
     from ..scan.register import GenericRegistration
     from ..usd.blendshape_layer import write_curves_layer
+    from ..usd.identity import identity, mesh_record
     from ..usd.inputs import load_mesh
     from ..usd.layers import check_output_path, describe, is_in_memory, provenance
     from ..usd.outputs import check_outputs
@@ -87,7 +88,8 @@ def shapes_transfer(target, landmarks, *, options: ShapesTransferOptions, output
                                                   "iterations": o.iterations, "landmarks": have},
                       inputs={"generic": generic, "genericShapes": generic_shapes if generic_shapes and
                               Path(generic_shapes).is_file() else None, "target": target, "landmarks": landmarks,
-                              "genericLandmarks": generic_landmarks})
+                              "genericLandmarks": generic_landmarks},
+                      identity=identity(mesh=mesh_record(moved.rig.mesh)))  # the target, as the layer holds it
     write_curves_layer(out, moved.rig, t_regions, prov=prov, report={"transfer": moved.info})
     seconds = time.perf_counter() - t0
     u = tmesh.units or "units"

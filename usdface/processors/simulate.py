@@ -29,8 +29,9 @@ def simulate(mesh_path, rig_path, *, options: SimulateOptions, output) -> Result
     from ..progress import progress
     from ..tissue.animate import ControlSamples
     from ..tissue.simulation import build_simulator
+    from ..usd.identity import identity
     from ..usd.muscle_layer import read_rig_layer, write_tissue_animation_layer, write_tissue_shot
-    from ..usd.tissue_inputs import load_tissue_mesh
+    from ..usd.tissue_inputs import check_rig_mesh, load_tissue_mesh
 
     out = check_output_path(output, suffixes=(".usdc", ".usd"),
                             inputs={"--mesh": mesh_path, "--rig": rig_path, "--timeline": options.timeline})
@@ -38,6 +39,7 @@ def simulate(mesh_path, rig_path, *, options: SimulateOptions, output) -> Result
         raise OptionError("simulate: give exactly one of --expression NAME or --timeline T.json")
     t0 = time.perf_counter()
     mesh, regions = load_tissue_mesh(mesh_path)
+    on_mesh = check_rig_mesh(rig_path, mesh_path, mesh)
     rig = read_rig_layer(rig_path, units=mesh.units)
     sim = build_simulator(mesh, regions, rig, integrator=options.integrator, dt=options.dt,
                           tissue=options.tissue_settings())
@@ -48,7 +50,8 @@ def simulate(mesh_path, rig_path, *, options: SimulateOptions, output) -> Result
     prov = provenance("simulate", options={"expression": options.expression, "integrator": options.integrator,
                                            "dt": sim.dt, "rate": tl.rate, "ramp": options.ramp, "hold": options.hold,
                                            "intensity": options.intensity, "tissue": sim.model.options.to_dict()},
-                      inputs={"mesh": mesh_path, "rig": rig_path, "timeline": options.timeline})
+                      inputs={"mesh": mesh_path, "rig": rig_path, "timeline": options.timeline},
+                      identity=identity(mesh=on_mesh))  # no take: a timeline or a preset drives it
     controls = ControlSamples(time_codes=frames, rate=tl.rate, muscle_names=rig.names, contractions=contr, jaw=jaw)
     bar = progress(total=n, desc="simulate", unit="frame")
     try:
@@ -57,7 +60,7 @@ def simulate(mesh_path, rig_path, *, options: SimulateOptions, output) -> Result
     finally:
         bar.close()
     shot = write_tissue_shot(out, [out], rate=tl.rate, start=float(frames[0]), end=float(frames[-1]),
-                             units=mesh.units)
+                             units=mesh.units, processor="simulate")
     summary = _summary(sim, mesh, rig, tl.rate, energy)
     summary = {"output": str(out), "shot": shot, "frames": int(n), "rate": tl.rate, "integrator": options.integrator,
                "dt": sim.dt, "steps": int(sim.steps), "seconds": time.perf_counter() - t0, **summary}

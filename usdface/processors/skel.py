@@ -58,6 +58,7 @@ def skel(mesh, capture, binding, analysis, *, options: SkelLayerOptions, output)
     (the Python API's) is not verified (the check needs the mesh composed with it).
     """
     from ..skel import build_rig, fit_skin, skel_inputs
+    from ..usd.identity import capture_record, identity, markers_record, mesh_record
     from ..usd.inputs import load_transfer_inputs
     from ..usd.skel_layer import write_skel_layer
 
@@ -65,7 +66,10 @@ def skel(mesh, capture, binding, analysis, *, options: SkelLayerOptions, output)
                                             "--analysis": analysis})
     params, skin = options.parameters(), options.skin_parameters()
     t0 = time.perf_counter()
-    inputs = skel_inputs(*load_transfer_inputs(mesh, capture, binding, analysis, method=options.method), params)
+    loaded = load_transfer_inputs(mesh, capture, binding, analysis, method=options.method)
+    made_of = identity(mesh=mesh_record(loaded[0]), markers=markers_record(loaded[2]),
+                       capture=capture_record(loaded[1]))  # the take as its layer holds it
+    inputs = skel_inputs(*loaded, params)
     hm = inputs.head_motion if options.head_motion else None
     fitted = fit_skin(inputs, skin)
     rig = build_rig(inputs.binding.names, inputs.bound_points, fitted.translations)
@@ -82,7 +86,7 @@ def skel(mesh, capture, binding, analysis, *, options: SkelLayerOptions, output)
                 "max_influences": chosen.k, "skin_fit": options.skin_fit, "corrective_shapes": skin.corrective_shapes,
                 "weight_fit": options.weight_fit, "head_motion": hm is not None}
     prov = provenance("skel", options=recorded, inputs={"mesh": mesh, "capture": capture, "binding": binding,
-                                                        "analysis": analysis})
+                                                        "analysis": analysis}, identity=made_of)
     capture_data = inputs.capture
     bar = progress(total=capture_data.n_frames, desc="skel", unit="frame")
     try:

@@ -168,6 +168,7 @@ def _scan_mesh(d, res, o: StereoOptions, pair: _Pair, inputs: dict, summary: dic
     from ..model.mesh import FaceMesh
     from ..scan.calibration import scan_camera_dict
     from ..scan.surface import reconstruct_surface
+    from ..usd.identity import identity, mesh_record
 
     rcal = pair.rcal
     depth = rcal.depth(d)
@@ -179,7 +180,8 @@ def _scan_mesh(d, res, o: StereoOptions, pair: _Pair, inputs: dict, summary: dic
     prov = provenance("stereo", options={"method": o.method, "minDisparity": res.min_disparity,
                                          "numDisparities": res.num_disparities, "surface": o.surface, "step": o.step,
                                          "vertical": pair.vertical},
-                      inputs={"left": inputs["left"], "right": inputs["right"], "calibration": o.calib})
+                      inputs={"left": inputs["left"], "right": inputs["right"], "calibration": o.calib},
+                      identity=identity(mesh=mesh_record(mesh)))  # a mesh layer: its own mesh
     prov["scanCamera"] = json.dumps(camera, sort_keys=True)
     zs = -surf.points[:, 2]
     where = _named(out)

@@ -56,6 +56,7 @@ def track(video, *, options: TrackOptions, output, csv=None, preview=None) -> Re
     from ..io.images import check_image_output
     from ..io.video import open_video
     from ..tracking.detect import check_radius_range
+    from ..usd.identity import capture_record, identity
 
     o = options
     t0 = time.perf_counter()
@@ -85,7 +86,8 @@ def track(video, *, options: TrackOptions, output, csv=None, preview=None) -> Re
         prov_inputs["seeds"] = o.seeds
     if o.layout:
         prov_inputs["layout"] = o.layout
-    prov = provenance("track", options=recorded, inputs=prov_inputs)
+    # the layer holds a take (2D, pixels): it records its own identity, as a capture layer does
+    prov = provenance("track", options=recorded, inputs=prov_inputs, identity=identity(capture=capture_record(capture)))
     picture = None
     if png_path is not None:
         from ..tracking.preview import render_track_preview

@@ -33,6 +33,7 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
     from ..capture.retarget import marker_displacements, mesh_head_motion
     from ..rbf.fitting import fit_transfer
     from ..usd.analysis_layer import write_animation_layer
+    from ..usd.identity import capture_record, identity, markers_record, mesh_record
     from ..usd.inputs import load_transfer_inputs
 
     params = options.parameters()
@@ -53,7 +54,9 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
                "polynomial": polynomial, "method": dm.method, "all_invalid": all_invalid,
                "head_motion": motion is not None}
     prov = provenance("transfer", options=recorded, inputs={"mesh": mesh_path, "capture": capture_path,
-                                                           "binding": binding_path, "analysis": analysis_path})
+                                                           "binding": binding_path, "analysis": analysis_path},
+                      identity=identity(mesh=mesh_record(mesh), markers=markers_record(binding),
+                                        capture=capture_record(capture)))
     bar = progress(total=capture.n_frames, desc="transfer", unit="frame")
     try:
         # the rest points and the extents come out of the RBF's matrix product (the producer thread):

@@ -43,8 +43,8 @@ def _fmt(v, digits: int = 3) -> str:
 
 
 def shot_warnings(d, *, bound: float = 25.0) -> list[str]:
-    """Things a reviewer should look at, from the numbers."""
-    out = list(d.warnings)
+    """Things a reviewer should look at, from the numbers; layers that do not belong together first."""
+    out = [f"mixed layers: {message}" for message in getattr(d, "mixed_layers", ())] + list(d.warnings)
     tr = d.transfer
     amp = tr.get("amplification")
     if amp is not None and amp > bound:

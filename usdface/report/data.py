@@ -58,6 +58,7 @@ class ShotData:
     transfer: dict = field(default_factory=dict)   # summary's transfer step + the layer's FaceTransferAPI
     extras: dict = field(default_factory=dict)     # sections added by hooks (blend-shape solve...)
     warnings: list = field(default_factory=list)
+    mixed_layers: list = field(default_factory=list)  # layers made for another mesh, bound points or take
 
     @property
     def n_frames(self) -> int:

@@ -13,8 +13,8 @@ from pxr import Sdf, Usd, UsdGeom, Vt
 from ..distance.matrices import DistanceMatrix
 from ..errors import InputError
 from ..model.timing import FrameRange
-from .layers import (add_sublayer, checkpoint, open_stage, output_layer, relative_asset_path, set_provenance,
-                     set_stage_metadata)
+from .layers import (add_sublayer, checkpoint, describe, open_stage, output_layer, relative_asset_path,
+                     set_provenance, set_stage_metadata)
 from .mesh_layer import find_mesh
 from .schemas import require_registered
 
@@ -210,21 +210,35 @@ def write_animation_layer(path, chunks, *, mesh_path, frames: FrameRange, units,
 
 
 def write_shot_stage(path, *, layers: list, rate: float, start: float, end: float, units,
-                     default_prim: str = "Face", stabilized_capture: bool = False, record: dict | None = None) -> str:
+                     default_prim: str = "Face", stabilized_capture: bool = False, record: dict | None = None,
+                     processor: str | None = None) -> str:
     """A small .usda composing the given layers (strongest first) with relative asset paths.
 
     With ``stabilized_capture`` the markers are shown head-stabilised (the capture's head-motion op
     is dropped from /Capture's op order), so they stay on the stabilised face animation.
     ``record`` (usdface.shot_commit.shot_record: the run id, every file's sha256 and provenance id)
-    goes into ``customLayerData["usdface"]["shot"]`` as JSON, for ``usdface check``.
+    goes into ``customLayerData["usdface"]["shot"]`` as JSON, for ``usdface check``, beside the
+    identity the layers agree on (:func:`usdface.usd.identity.agreeing_identity`: the layers given
+    and the files they compose). Without a record, ``processor`` (the command writing the stage
+    beside its layer: simulate, fit-muscles) records the version, itself and that identity; with
+    neither, the stage carries no provenance.
+
+    Raises MixedLayersError, before writing, when the layers were made for different meshes, bound
+    points or takes.
     """
+    from .identity import agreeing_identity
+
+    agreed = agreeing_identity(layers, what=f"shot {describe(path)}")
     with output_layer(path) as stage:
         root = stage.GetRootLayer()
-        if record is not None:
+        if record is not None or processor is not None:
             from .. import __version__
 
-            set_provenance(stage, {"usdfaceVersion": __version__, "processor": "run",
-                                   "shot": json.dumps(record, sort_keys=True)})
+            prov = {"usdfaceVersion": __version__, "processor": "run" if record is not None else processor,
+                    "identity": agreed}
+            if record is not None:
+                prov["shot"] = json.dumps(record, sort_keys=True)
+            set_provenance(stage, prov)
         for layer in layers:
             root.subLayerPaths.append(relative_asset_path(layer, path))
         set_stage_metadata(stage, units=units, default_prim=default_prim, rate=rate, start=start, end=end)

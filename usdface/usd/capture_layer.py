@@ -18,7 +18,7 @@ import os
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-from ..model.capture import Capture
+from ..model.capture import Capture, hold_invalid
 from ..errors import InputError, MarkerError
 from ..inputfiles import display_name, first_beyond_float32
 from ..units import METERS_PER_UNIT
@@ -28,26 +28,6 @@ from .schemas import require_registered
 CAPTURE_PRIM = "/Capture"
 MARKERS_PRIM = "/Capture/Markers"
 MARKER_SET_API = "FaceMarkerSetAPI"
-
-
-def hold_invalid(positions: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Replace invalid samples by the last valid one (the first valid one before any).
-
-    Parameters
-    ----------
-    positions : ndarray, shape (F, M, D)
-    valid : ndarray, shape (F, M), bool
-
-    Returns
-    -------
-    ndarray, shape (F, M, D), with no NaN for markers that have at least one valid sample.
-    """
-    f = positions.shape[0]
-    idx = np.where(valid, np.arange(f)[:, None], -1)
-    np.maximum.accumulate(idx, axis=0, out=idx)
-    first = valid.argmax(axis=0)
-    idx = np.where(idx < 0, first[None, :], idx)
-    return np.take_along_axis(positions, idx[:, :, None], axis=0)
 
 
 def _matrix_to_usd(m: np.ndarray) -> Gf.Matrix4d:

@@ -6,6 +6,8 @@ import os
 import numpy as np
 from pxr import Usd, UsdGeom, UsdSkel
 
+from ..model.identity import short
+from .identity import describe_identity, marker_set_take, prim_markers_record, prim_mesh_record
 from .layers import get_provenance, open_stage, stage_units
 
 
@@ -46,6 +48,7 @@ def describe(path: str | os.PathLike) -> dict:
                 "neutralTime": prim.GetAttribute("usdface:markerSet:neutralTime").Get(),
                 "invalidSamples": invalid,
                 **_head_motion(prim),
+                "take": (marker_set_take(prim) or {}).get("sha256"),  # computed from its capture layer
             }
         elif prim.IsA(UsdGeom.Xformable):
             timed = [op.GetOpName() for op in UsdGeom.Xformable(prim).GetOrderedXformOps() if op.GetNumTimeSamples() > 1]
@@ -63,6 +66,7 @@ def describe(path: str | os.PathLike) -> dict:
                 "animatedFrames": pts_attr.GetNumTimeSamples(),
                 "subdivisionScheme": mesh.GetSubdivisionSchemeAttr().Get(),
                 "uvs": bool(UsdGeom.PrimvarsAPI(prim).GetPrimvar("st")),
+                "identity": (prim_mesh_record(prim) or ({},))[0].get("sha256"),  # computed from its rest points
             }
             regions = [s.split(":", 1)[1] for s in prim.GetAppliedSchemas() if s.startswith("FaceRegionAPI:")]
             if regions:
@@ -77,6 +81,7 @@ def describe(path: str | os.PathLike) -> dict:
                     "retarget": prim.GetAttribute("usdface:binding:retarget").Get(),
                     "residualMedian": float(np.median(res)) if res.size else None,
                     "residualMax": float(res.max()) if res.size else None,
+                    "boundPoints": (prim_markers_record(prim) or {}).get("boundPoints"),  # computed
                 }
             matrices = [s.split(":", 1)[1] for s in prim.GetAppliedSchemas() if s.startswith("FaceDistanceMatrixAPI:")]
             if matrices:
@@ -118,6 +123,9 @@ def format_description(d: dict) -> list[str]:
         lines.append(f"  subLayers: {', '.join(d['subLayers'])}")
     if d["provenance"]:
         lines.append(f"  written by usdface {d['provenance'].get('usdfaceVersion')} ({d['provenance'].get('processor')})")
+        recorded = describe_identity(d["provenance"].get("identity"))
+        if recorded:
+            lines.append(f"  belongs to: {recorded}")
     for p in d["prims"]:
         schemas = f"  [{', '.join(p['schemas'])}]" if p["schemas"] else ""
         lines.append(f"  {p['path']} ({p['type'] or 'over'}){schemas}")
@@ -130,6 +138,8 @@ def format_description(d: dict) -> list[str]:
                             "yes (removed by stabilisation; applied to the markers here)" if m["headMotionApplied"] else
                             "yes (removed by stabilisation; markers shown stabilised here)"))
             lines.append(f"      from {m['sourceFile']}: {', '.join(m['names'][:8])}{', ...' if m['markers'] > 8 else ''}")
+            if m.get("take"):
+                lines.append(f"      take {short(m['take'])}")
         for op, n in p.get("animatedTransform", {}).items():
             lines.append(f"      {op}: {n} time samples" + (" (head motion)" if p["path"] == f"/{d['defaultPrim']}" else ""))
         if "mesh" in p:
@@ -138,13 +148,16 @@ def format_description(d: dict) -> list[str]:
             anim = f", animated over {m['animatedFrames']} frames" if m["animatedFrames"] else ""
             lines.append(f"      {m['points']} points, {m['faces']} faces ({sizes}), "
                          f"subdivision {m['subdivisionScheme']}, uvs {'yes' if m['uvs'] else 'no'}{anim}")
+            if m.get("identity"):
+                lines.append(f"      mesh {short(m['identity'])}")
         for name, r in p.get("regions", {}).items():
             lines.append(f"      region {name}: role {r['role']}, {r['vertices']} vertices")
         if "binding" in p:
             b = p["binding"]
             u = d["units"] or "mesh units"  # the binding's residuals are in the mesh's units
             lines.append(f"      binding: {b['markers']} markers ({b['method']}, retarget {b['retarget']}), surface residual median "
-                         f"{b['residualMedian']:.3g} {u}, max {b['residualMax']:.3g} {u}")
+                         f"{b['residualMedian']:.3g} {u}, max {b['residualMax']:.3g} {u}"
+                         + (f", bound points {short(b['boundPoints'])}" if b.get("boundPoints") else ""))
         for name, m in p.get("distanceMatrices", {}).items():
             lines.append(f"      distance matrix {name}: {m['method']}/{m['backend']}, {m['markers']} markers")
         if "transfer" in p:

@@ -10,7 +10,7 @@ from ..model.capture import Capture
 from ..errors import MarkerError, MeshError, OptionError, list_names
 from ..model.mesh import FaceMesh
 from ..units import scale_between
-from .layers import USD_SUFFIXES, is_in_memory, open_stage
+from .layers import USD_SUFFIXES, describe, is_in_memory, open_stage
 
 __all__ = ["load_mesh", "load_capture", "load_transfer_inputs", "check_capture_units"]
 
@@ -61,20 +61,28 @@ def load_capture(path, *, units=None, rate=None, up_axis=None, keep_zeros=False,
 def load_transfer_inputs(mesh_path, capture_path, binding_path, analysis_path, *, method=None):
     """Read and cross-check the inputs of a transfer: (mesh, capture, binding, distance matrix).
 
-    Raises MarkerError / OptionError / InputError naming the file at fault when the analysis was
-    computed for other markers or another mesh.
+    Raises MixedLayersError when the binding or the analysis was made for another mesh, or the
+    analysis for other bound points (:mod:`usdface.usd.identity`; layers of usdface 0.2 are
+    accepted with a warning), and MarkerError / OptionError / InputError naming the file at fault
+    when the analysis was computed for other markers or another mesh size.
     """
     from .analysis_layer import read_distance_matrix
     from .capture_layer import read_capture_layer
+    from .identity import claims_of, markers_record, mesh_record, verify
     from .mesh_layer import read_binding, read_mesh_layer
 
     mesh, _ = read_mesh_layer(mesh_path)
     capture = read_capture_layer(capture_path)
     binding = read_binding(open_stage(binding_path, what="binding"), source=str(binding_path))
     dm = read_distance_matrix(analysis_path, method=method)
+    on_mesh = (f"mesh {describe(mesh_path)}", mesh_record(mesh))
+    verify(claims_of(binding_path, "binding"), mesh=on_mesh, remedy="bind the capture on this mesh (`usdface bind`)")
     if tuple(dm.marker_names) != tuple(binding.names):
         raise MarkerError(f"analysis {analysis_path} was computed for markers {list_names(dm.marker_names)}, "
                           f"binding {binding_path} binds {list_names(binding.names)}; recompute the distances")
+    verify(claims_of(analysis_path, "analysis"), mesh=on_mesh,
+           markers=(f"binding {describe(binding_path)}", markers_record(binding)),
+           remedy="compute the distances again (`usdface distances`)")
     if dm.vertex_to_centre.shape[0] != mesh.n_points:
         raise OptionError(f"analysis {analysis_path} has {dm.vertex_to_centre.shape[0]} vertices, mesh {mesh_path} "
                           f"has {mesh.n_points}: they belong to different meshes")

@@ -142,8 +142,10 @@ def stage_units(stage: Usd.Stage) -> str | None:
     return unit_name(UsdGeom.GetStageMetersPerUnit(stage))
 
 
-def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.PathLike | None]) -> dict:
-    """Provenance for customLayerData: usdface version, processor, options, input names and hashes.
+def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.PathLike | None],
+               identity: dict | None = None) -> dict:
+    """Provenance for customLayerData: usdface version, processor, options, input names and hashes,
+    and ``identity``: what the layer belongs to (:func:`usdface.usd.identity.identity`).
 
     No timestamps, host names or absolute paths, so the same inputs give byte-identical layers.
     """
@@ -156,12 +158,15 @@ def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.Path
             recorded[role] = {"layer": layer.GetDisplayName() or "anonymous", "inMemory": True}
             continue
         recorded[role] = {"file": Path(path).name, "sha256": file_digest(path)}
-    return {
+    prov = {
         "usdfaceVersion": __version__,
         "processor": processor,
         "options": json.dumps(options, sort_keys=True, default=str),
         "inputs": json.dumps(recorded, sort_keys=True),
     }
+    if identity is not None:
+        prov["identity"] = identity
+    return prov
 
 
 def set_provenance(stage: Usd.Stage, prov: dict) -> None:

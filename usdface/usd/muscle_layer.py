@@ -302,9 +302,11 @@ def shot_path_for(output) -> Path:
     return out.with_name(f"{out.stem}_shot.usda")
 
 
-def write_tissue_shot(output, layers, *, rate, start, end, units, stabilized_capture=False) -> str | None:
+def write_tissue_shot(output, layers, *, rate, start, end, units, stabilized_capture=False,
+                      processor: str | None = None) -> str | None:
     """Write the shot stage beside the animation layer ``output``: a .usda composing ``layers``
-    (strongest first; layers held in memory are left out: they have no file to point to).
+    (strongest first; layers held in memory are left out: they have no file to point to), whose
+    provenance names ``processor`` and the identity its layers agree on.
     Returns its path, or None when ``output`` is in memory (no folder to write beside)."""
     from .analysis_layer import write_shot_stage
 
@@ -312,7 +314,7 @@ def write_tissue_shot(output, layers, *, rate, start, end, units, stabilized_cap
         return None
     shot = shot_path_for(output)
     write_shot_stage(shot, layers=[layer for layer in layers if not is_in_memory(layer)], rate=rate, start=start,
-                     end=end, units=units, stabilized_capture=stabilized_capture)
+                     end=end, units=units, stabilized_capture=stabilized_capture, processor=processor)
     return str(shot)
 
 

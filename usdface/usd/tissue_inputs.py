@@ -9,7 +9,7 @@ from ..errors import InputError
 from .inputs import load_mesh
 from .layers import describe, is_in_memory, open_stage
 
-__all__ = ["load_tissue_mesh", "marker_positions"]
+__all__ = ["load_tissue_mesh", "marker_positions", "check_rig_mesh"]
 
 
 def load_tissue_mesh(source):
@@ -49,3 +49,15 @@ def marker_positions(mesh, *, layout=None, binding=None) -> dict | None:
         b = read_binding(open_stage(binding, what="binding"), source=describe(binding))
         return dict(zip(b.names, b.surface_points(mesh.points)))
     return None
+
+
+def check_rig_mesh(rig, mesh_source, mesh) -> dict:
+    """The mesh identity record of ``mesh`` (read from ``mesh_source``), after checking that the rig
+    layer ``rig`` was placed on it: a rig of another face is refused (MixedLayersError naming both
+    files), a rig of usdface 0.2 accepted with a warning (:func:`usdface.usd.identity.verify`)."""
+    from .identity import claims_of, mesh_record, verify
+
+    record = mesh_record(mesh)
+    verify(claims_of(rig, "rig"), mesh=(f"mesh {describe(mesh_source)}", record),
+           remedy="place the muscles on this mesh (`usdface muscles`; --from-rig warps this rig onto it)")
+    return record

@@ -282,9 +282,23 @@ def check_shot_integrity(path: str | os.PathLike) -> list[Finding]:
     return findings
 
 
+IDENTITY_RULE = "usdface:LayerIdentity"
+
+
+def identity_findings(stage: Usd.Stage, *, folder=None) -> list[Finding]:
+    """Layers of the stage (its root, sublayers and references) made for another mesh, other
+    bound points or another take than the ones the stage holds (errors), and usdface layers that
+    record no identity (warnings): :func:`usdface.usd.identity.stage_findings`."""
+    from .identity import stage_findings
+
+    return [Finding(severity, IDENTITY_RULE, site, message)
+            for severity, site, message in stage_findings(stage, folder=folder)]
+
+
 def check_layer(path: str | os.PathLike) -> list[Finding]:
     """Run every UsdValidation validator (USD's and usdface's) on the stage opened from ``path``,
-    and, for a shot stage written by `usdface run`, :func:`check_shot_integrity`."""
+    :func:`identity_findings` on the layers it composes, and, for a shot stage written by
+    `usdface run`, :func:`check_shot_integrity`."""
     from .layers import is_in_memory
 
     integrity = [] if is_in_memory(path) else check_shot_integrity(path)  # shots are files
@@ -315,6 +329,7 @@ def check_layer(path: str | os.PathLike) -> list[Finding]:
             # 2D tracks are in pixels: no metric scale exists, and a made-up one would mislead
             severity, message = "warning", message + " (a 2D image-track layer: pixels have no metric scale)"
         findings.append(Finding(severity, error.GetIdentifier(), site, message))
+    findings += identity_findings(stage, folder=None if is_in_memory(path) else Path(path).resolve().parent)
     findings += integrity
     findings.sort(key=lambda f: (f.severity != "error", f.rule, f.site))
     return findings
