@@ -34,7 +34,9 @@ Temporaries (work folders, ``.<name>.tmp-<pid>@<host>-...`` files) are removed b
 into the folder, and by ``usdface batch`` for each shot folder and the cache, when their owner is
 dead: named by a process of this host that no longer runs (or whose pid was reused since), or
 older than :data:`TEMPORARY_MAX_AGE` (24 hours: owners on other hosts cannot be asked). A run
-folder holding ``COMMIT.json`` has its commit completed first.
+folder of this host found by a process holding the folder's lock is dead whatever its pid says
+(a run keeps the lock while its folder lives; a long-lived Dask worker's pid outlives its shots).
+A run folder holding ``COMMIT.json`` has its commit completed first.
 
 Test hook: ``USDFACE_TEST_KILL_AT=<step>`` (tests only) makes the commit send itself SIGKILL right
 after ``<step>``; :func:`commit_steps` lists the steps of a run's files.
@@ -50,14 +52,14 @@ import secrets
 import shutil
 import signal
 import socket
-import threading
 import time
 from pathlib import Path
 
-from ..errors import LockedError, stop_signals
+from ..errors import LockedError
 from ..fileutil import (HOST_TAG, TEMPORARY_MAX_AGE, format_bytes, fsync_dir, fsync_file, inject_fault, owner_is_dead,
                         same_file_problems, temporary_owner, write_error)
 from ..usd.shot_record import MARKER_NAME, RUN_FOLDER_PREFIX, SUMMARY_NAME, is_shot_stage, leftovers, shot_record
+from .stopping import signals_deferred
 
 log = logging.getLogger("usdface")
 
@@ -304,8 +306,8 @@ def tidy(folder, *, keep=(), max_age: float = TEMPORARY_MAX_AGE) -> dict:
         except OSError:
             continue
         dead = owner_is_dead(path.name, path.lstat().st_mtime)
-        if path.name.startswith(RUN_FOLDER_PREFIX) and temporary_owner(path.name) == (os.getpid(), HOST_TAG):
-            dead = True  # this process's own earlier run (it failed): the caller holds the lock, so not in use
+        if path.name.startswith(RUN_FOLDER_PREFIX) and (temporary_owner(path.name) or (0, None))[1] == HOST_TAG:
+            dead = True  # the caller holds the lock that every run of this host holds while its folder lives
         if dead is False or (dead is None and now - mtime < max_age):
             report["kept"].append(path.name)
             continue
@@ -330,9 +332,10 @@ def tidy(folder, *, keep=(), max_age: float = TEMPORARY_MAX_AGE) -> dict:
 
 
 def tidy_unlocked_folder(folder) -> dict | None:
-    """:func:`tidy` ``folder`` under its lock, unless a live run holds it (then None)."""
+    """:func:`tidy` ``folder`` under its lock, unless a live run holds it (then None); a lock file
+    that nobody holds (its run was killed) is removed with the lock."""
     folder = Path(folder)
-    if not folder.is_dir() or not leftovers(folder):
+    if not folder.is_dir() or not (leftovers(folder) or (folder / LOCK_NAME).exists()):
         return None
     lock = OutdirLock(folder)
     try:
@@ -343,31 +346,6 @@ def tidy_unlocked_folder(folder) -> dict | None:
         return tidy(folder)
     finally:
         lock.release()
-
-
-@contextlib.contextmanager
-def _signals_deferred():
-    """SIGINT, SIGTERM and SIGHUP wait until the block ends (a commit is never stopped half-way),
-    then act."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    pending: list[int] = []
-    sigs = list(stop_signals())
-    previous = {}
-    try:
-        for s in sigs:
-            previous[s] = signal.signal(s, lambda signum, frame: pending.append(signum))
-    except ValueError:  # not the main interpreter
-        yield
-        return
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-        if pending:
-            signal.raise_signal(pending[0])
 
 
 # -- one run's session ----------------------------------------------------------------------------
@@ -455,7 +433,7 @@ class ShotSession:
             raise RuntimeError(f"commit: {', '.join(missing)} not written")  # a bug, not a user error
         plan = {"runId": self.run_id, "files": order, "stale": self._stale(order), "pid": os.getpid(),
                 "host": HOST_TAG}
-        with _signals_deferred():
+        with signals_deferred():
             try:
                 for name in order:
                     _fsync_tree(self.work / name)

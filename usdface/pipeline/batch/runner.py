@@ -17,32 +17,36 @@ import traceback
 from pathlib import Path
 
 from ... import __version__, registry
-from ...errors import EnvironmentFault, OptionError, UsdFaceError
+from ...errors import OptionError, UsdFaceError
 from ...options import BatchOptions, RunOptions
+from ..stopping import StopRequested, running_shot
+from .cluster import probe_scheduler
 from .manifest import Manifest, Shot
 
 log = logging.getLogger("usdface")
 
-#: how long a client waits for a scheduler's TCP connection (seconds)
-CONNECT_TIMEOUT = 3.0
-#: the whole check that --scheduler is a Dask scheduler (connect, handshake, identity) stops after
-#: this many seconds, so a wrong address fails within 10 s of starting the command
-PROBE_TIMEOUT = 4.0
-#: how long the client then waits for the scheduler it probed (seconds)
-CLIENT_TIMEOUT = 10.0
-#: thread variables fixed in every worker (before numpy loads where we start the process)
-THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-              "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1", "NUMEXPR_NUM_THREADS": "1"}
-
-
 # -- one shot (runs on a worker) ------------------------------------------------------------------
 
 def execute_shot(shot: Shot, cache_root: str | None) -> dict:
-    """Run one shot in this process; returns its record (never raises for the shot's errors)."""
+    """Run one shot in this process; returns its record (never raises for the shot's errors).
+
+    In a worker thread, a stop asked of the worker (SIGTERM, SIGHUP, a stopping batch) ends the
+    shot after it has removed its partial work: status ``interrupted``."""
     started = time.perf_counter()
     rec = {"name": shot.name, "output": shot.output, "mesh": shot.mesh, "capture": shot.capture,
            "status": "failed", "seconds": None, "error": None, "steps": {}, "cache": {},
            "host": _worker_name()}
+    try:
+        with running_shot(shot.output):
+            _execute(shot, cache_root, rec, started)
+    except StopRequested as exc:
+        rec["status"] = "interrupted"
+        rec["error"] = f"stopped by {exc} on {rec['host']}; partial work removed"
+    rec["seconds"] = round(time.perf_counter() - started, 3)
+    return rec
+
+
+def _execute(shot: Shot, cache_root: str | None, rec: dict, started: float) -> None:
     try:
         with single_threaded():
             cache = None
@@ -75,8 +79,6 @@ def execute_shot(shot: Shot, cache_root: str | None) -> dict:
         rec["error"] = describe_exception(exc)
         if not is_environment_fault(exc):
             rec["traceback"] = traceback.format_exc(limit=8)
-    rec["seconds"] = round(time.perf_counter() - started, 3)
-    return rec
 
 
 def _run_batch_step(step: str, shot: Shot, rec: dict) -> None:
@@ -283,64 +285,84 @@ def run_batch(manifest: Manifest, options: BatchOptions = BatchOptions(), *, sum
     return summary
 
 
-def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -> None:
-    try:
-        from distributed import Client, LocalCluster, as_completed
-    except ImportError:
-        raise OptionError("usdface batch needs dask.distributed: pip install \"dask[distributed]\"") from None
-    import dask
+#: times a shot stopped on its worker (a farm draining a node: SIGTERM) is handed out again
+SHOT_ATTEMPTS = 3
 
-    # Dask logs at INFO to the root logger; keep its chatter out unless usdface is verbose
-    level = logging.getLogger("usdface").getEffectiveLevel()
-    for name in ("distributed", "bokeh", "tornado"):
-        logging.getLogger(name).setLevel(max(level, logging.WARNING) if level > logging.DEBUG else logging.INFO)
-    cluster = None
-    if scheduler:  # run_batch checked it is a Dask scheduler (probe_scheduler)
-        try:
-            with dask.config.set({"distributed.comm.timeouts.connect": f"{CLIENT_TIMEOUT}s"}):
-                client = Client(scheduler, timeout=f"{CLIENT_TIMEOUT}s", set_as_default=False)
-        except (OSError, TimeoutError) as exc:
-            raise EnvironmentFault(f"--scheduler {scheduler}: the Dask scheduler stopped answering within "
-                                   f"{CLIENT_TIMEOUT:g} s ({type(exc).__name__})") from None
-        info.update(mode="scheduler", scheduler=scheduler)
-    else:
-        n = workers or min(os.cpu_count() or 1, len(todo))
-        n = max(1, min(n, len(todo)))
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               env=dict(THREAD_ENV), silence_logs=logging.ERROR)
-        client = Client(cluster, set_as_default=False)
-        info.update(mode="local", scheduler=cluster.scheduler_address)
+
+def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -> None:
+    """The shots on Dask, longest first; a stopped batch leaves no partial work (:mod:`.cluster`)."""
+    from . import cluster as dask_cluster
+
+    n = workers or min(os.cpu_count() or 1, len(todo))
+    client, local, connected = dask_cluster.connect(scheduler, max(1, min(n, len(todo))))
+    info.update(connected)
+    futures: dict = {}
+    unfinished = {shot.name: shot for shot in todo}
     try:
-        info["workers"] = len(client.scheduler_info(n_workers=-1).get("workers", {})) \
-            if _takes_n_workers(client) else len(client.scheduler_info().get("workers", {}))
-        info["dashboard"] = _dashboard(client)
-        status_out.note(f"dask: {info['mode']} scheduler {info['scheduler']}, {info['workers']} worker(s)"
-                        + (f", dashboard {info['dashboard']}" if info["dashboard"] else
-                           " (dashboard: pip install bokeh)"))
-        if info["workers"] == 0:
-            status_out.note("dask: the scheduler has no workers yet; shots wait until one connects")
-        futures = {}
-        # longest first (LPT): a big character's takes submitted last would run one after the other
-        # at the end while the other workers sit idle; records stay in manifest order
-        for rank, shot in enumerate(sorted(todo, key=shot_cost, reverse=True)):
-            fut = client.submit(execute_shot, shot, cache_root, key=f"usdface-shot-{shot.name}-{id(shot)}",
-                                pure=False, retries=0, priority=len(todo) - rank)
-            futures[fut] = shot
-            status_out.start(shot)
-        for fut in as_completed(list(futures), loop=client.loop):
-            shot = futures[fut]
-            try:
-                rec = fut.result()
-            except Exception as exc:  # noqa: BLE001 - KilledWorker, a worker out of memory...
-                rec = {"name": shot.name, "output": shot.output, "mesh": shot.mesh, "capture": shot.capture,
-                       "status": "failed", "seconds": None, "cache": {},
-                       "error": f"the Dask task failed: {type(exc).__name__}: {exc}"}
-            records[shot.name] = rec
-            status_out.done(rec)
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        _submit_and_collect(client, todo, cache_root, futures, unfinished, records, info, status_out)
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP: stop the shots, then say so
+        from ..stopping import signals_deferred
+
+        with signals_deferred():
+            dask_cluster.stop(client, futures, [s.output for s in unfinished.values()], exc)
+            dask_cluster.close(client, local)
+            dask_cluster.tidy_shot_folders([s.output for s in unfinished.values()])
+        raise
+    except BaseException:
+        dask_cluster.close(client, local)
+        dask_cluster.tidy_shot_folders([s.output for s in unfinished.values()])
+        raise
+    dask_cluster.close(client, local)
+
+
+def _submit_and_collect(client, todo, cache_root, futures, unfinished, records, info, status_out) -> None:
+    from distributed import as_completed
+
+    from .cluster import dashboard_of, n_workers_of
+
+    info["workers"] = n_workers_of(client)
+    info["dashboard"] = dashboard_of(client)
+    status_out.note(f"dask: {info['mode']} scheduler {info['scheduler']}, {info['workers']} worker(s)"
+                    + (f", dashboard {info['dashboard']}" if info["dashboard"] else " (dashboard: pip install bokeh)"))
+    if info["workers"] == 0:
+        status_out.note("dask: the scheduler has no workers yet; shots wait until one connects")
+    attempts: dict[str, int] = {}
+
+    def submit(shot, priority):
+        attempts[shot.name] = attempts.get(shot.name, 0) + 1
+        fut = client.submit(execute_shot, shot, cache_root, pure=False, retries=0, priority=priority,
+                            key=f"usdface-shot-{shot.name}-{id(shot)}-{attempts[shot.name]}")
+        futures[fut] = shot
+        return fut
+
+    # longest first (LPT): a big character's takes submitted last would run one after the other
+    # at the end while the other workers sit idle; records stay in manifest order
+    pending = as_completed([submit(shot, len(todo) - rank)
+                            for rank, shot in enumerate(sorted(todo, key=shot_cost, reverse=True))], loop=client.loop)
+    for shot in todo:
+        status_out.start(shot)
+    for fut in pending:
+        shot = futures.pop(fut)
+        rec = _task_record(fut, shot)
+        if rec["status"] == "interrupted" and attempts[shot.name] < SHOT_ATTEMPTS:
+            log.info("%s: %s; handed out again", shot.name, rec["error"])
+            pending.add(submit(shot, len(todo)))
+            continue
+        if rec["status"] == "interrupted":
+            rec["status"] = "failed"
+        records[shot.name] = rec
+        unfinished.pop(shot.name, None)
+        status_out.done(rec)
+
+
+def _task_record(fut, shot: Shot) -> dict:
+    """The shot's record returned by its task, or a failed record saying why the task failed."""
+    try:
+        return fut.result()
+    except Exception as exc:  # noqa: BLE001 - KilledWorker, a worker out of memory...
+        return {"name": shot.name, "output": shot.output, "mesh": shot.mesh, "capture": shot.capture,
+                "status": "failed", "seconds": None, "cache": {},
+                "error": f"the Dask task failed: {type(exc).__name__}: {exc}"}
 
 
 def shot_cost(shot: Shot) -> float:
@@ -359,71 +381,6 @@ def shot_cost(shot: Shot) -> float:
     trim = shot.options.get("trim")
     frames = float(trim[1] - trim[0]) if isinstance(trim, (list, tuple)) and len(trim) == 2 else size(shot.capture)
     return size(shot.mesh) * max(frames, 1.0)
-
-
-def probe_scheduler(address: str, *, timeout: float = PROBE_TIMEOUT) -> dict:
-    """Check that ``address`` is a Dask scheduler within ``timeout`` seconds; returns its identity.
-
-    A TCP connection first (a port where nothing listens fails at once), then Dask's handshake and
-    an identity request under one deadline: a server speaking another protocol (HTTP: the
-    dashboard's port 8787, SSH, ...) or one that never answers fails with a clear
-    :class:`~usdface.errors.EnvironmentFault` instead of hanging.
-    """
-    import asyncio
-    import socket
-
-    from distributed.comm import connect
-    from distributed.comm.addressing import parse_address, parse_host_port
-
-    hint = (f"start one with `dask scheduler` (it listens on 8786 by default; 8787 is its dashboard) and workers "
-            f"with `dask worker {address}`, or leave out --scheduler to run on this machine")
-    started = time.monotonic()
-    scheme, loc = parse_address(address)
-    if scheme in ("tcp", "tls"):
-        try:
-            host, port = parse_host_port(loc)
-            socket.create_connection((host, port), timeout=min(CONNECT_TIMEOUT, timeout)).close()
-        except (OSError, ValueError, TypeError) as exc:
-            why = getattr(exc, "strerror", None) or ("timed out" if isinstance(exc, TimeoutError) else str(exc))
-            raise EnvironmentFault(f"--scheduler {address}: nothing listens there ({why}); {hint}") from None
-
-    async def identity():
-        comm = await connect(address, timeout=max(0.5, timeout - (time.monotonic() - started)))
-        try:
-            await comm.write({"op": "identity", "reply": True})
-            return await comm.read()
-        finally:
-            comm.abort()
-
-    not_dask = f"--scheduler {address}: the server there does not answer as a Dask scheduler"
-    try:
-        answer = asyncio.run(asyncio.wait_for(identity(), max(0.5, timeout - (time.monotonic() - started))))
-    except (asyncio.TimeoutError, TimeoutError):
-        raise EnvironmentFault(f"{not_dask} within {timeout:g} s (a web server, such as the dashboard on 8787, or "
-                               f"another service); {hint}") from None
-    except Exception:  # noqa: BLE001 - closed connection, garbage frames: not Dask's protocol
-        raise EnvironmentFault(f"{not_dask} (it closed the connection or replied in another protocol); "
-                               f"{hint}") from None
-    if not isinstance(answer, dict) or answer.get("type") != "Scheduler":
-        kind = answer.get("type") if isinstance(answer, dict) else type(answer).__name__
-        raise EnvironmentFault(f"--scheduler {address}: the server is a Dask {kind}, not a scheduler; {hint}")
-    return answer
-
-
-def _takes_n_workers(client) -> bool:
-    import inspect
-
-    return "n_workers" in inspect.signature(client.scheduler_info).parameters
-
-
-def _dashboard(client) -> str | None:
-    try:
-        services = client.scheduler_info().get("services", {})
-        if "dashboard" not in services:
-            return None
-        return client.dashboard_link
-    except Exception:  # noqa: BLE001
-        return None
 
 
 class _StatusPrinter:
