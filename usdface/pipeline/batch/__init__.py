@@ -25,10 +25,16 @@ def batch(manifest, *, options: BatchOptions, summary=None, report=None) -> Resu
     usdface-batch-summary.json); ``report``: also write the HTML batch report to this file, or
     beside the batch summary (``.html``) when ``True``. The Result's ``exit_code`` is 1 if any
     shot failed; its ``text`` is the shot table.
+
+    With ``options.report_only``, no shot runs: the report is rebuilt from the summary of the
+    finished batch (``summary``, default the manifest's) by :func:`.report.report_only`.
     """
     from .manifest import check_batch_outputs, load_manifest
+    from .report import report_only, write_batch_report
     from .runner import run_batch
 
+    if options.report_only:  # the report of the finished batch, from its summary: no shot runs
+        return report_only(manifest, summary, report, out_root=options.out_root)
     m = load_manifest(manifest, out_root=options.out_root)
     summary_file = summary or m.summary
     report_file = None if report in (None, False) else Path(summary_file).with_suffix(".html") if report is True \
@@ -42,9 +48,7 @@ def batch(manifest, *, options: BatchOptions, summary=None, report=None) -> Resu
     result = run_batch(m, options, summary_path=summary)
     files = {"summary": result["summaryFile"]}
     if report not in (None, False):
-        from ..report import batch_report
-
-        rep = batch_report(result, None if report is True else report)
+        rep = write_batch_report(result, None if report is True else report)
         result["report"] = rep.summary["output"]
         files["report"] = rep.summary["output"]
         result["_text"] = list(result.get("_text", [])) + rep.text
