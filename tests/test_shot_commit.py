@@ -267,8 +267,8 @@ def test_tidy_unlocked_folder_removes_a_lock_nobody_holds(tmp_path):
     assert tidy_unlocked_folder(tmp_path) is not None
     assert not (tmp_path / LOCK_NAME).exists()
     # a lock a live process holds: left to it, with its work folder
-    code = ("import sys, time; from usdface.pipeline.shot_commit import ShotSession; s = ShotSession(sys.argv[1], 'r'); "
-            "s.open(); print(s.work.name, flush=True); time.sleep(60)")
+    code = ("import sys, time; from usdface.pipeline.shot_commit import ShotSession; "
+            "s = ShotSession(sys.argv[1], 'r'); s.open(); print(s.work.name, flush=True); time.sleep(60)")
     p = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE, text=True)
     try:
         work = p.stdout.readline().strip()

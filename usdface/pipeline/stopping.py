@@ -247,9 +247,9 @@ def install_worker_handlers(*, ignore_interrupt: bool) -> bool:
 
 
 async def stop_shots(outputs, signum: int, timeout: float = STOP_WAIT) -> list[str]:
-    """Run on every worker by a batch that stops (``client.run``): stop the shots writing one of
-    ``outputs`` and wait (without blocking the worker's event loop) until they have removed their
-    partial work. Returns the outputs stopped."""
+    """Run on every worker by a batch that stops (``client.run``), or by a worker that closes:
+    stop the shots writing one of ``outputs`` (None: all) and wait (without blocking the worker's
+    event loop) until they have removed their partial work. Returns the outputs stopped."""
     idents = request_stop(signum, outputs)
     with _lock:
         stopped = [s.output for i, s in _shots.items() if i in idents]

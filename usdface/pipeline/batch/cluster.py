@@ -31,6 +31,8 @@ CONNECT_TIMEOUT = 3.0
 PROBE_TIMEOUT = 4.0
 #: how long the client then waits for the scheduler it probed (seconds)
 CLIENT_TIMEOUT = 10.0
+#: how long a batch waits for its workers to confirm usdface's worker plugin (seconds)
+PLUGIN_WAIT = 10.0
 #: how long the local cluster's workers may take to start (seconds; a loaded machine is slow)
 WORKER_START_TIMEOUT = 120.0
 #: thread variables fixed in every worker (before numpy loads where we start the process)
@@ -147,13 +149,39 @@ def connect(scheduler: str | None, n_workers: int):
             raise
         info = {"mode": "local", "scheduler": cluster.scheduler_address}
     try:
-        from .worker_plugin import StopPlugin
-
-        client.register_plugin(StopPlugin(ignore_interrupt=cluster is not None))
+        register_stop_plugin(client, ignore_interrupt=cluster is not None)
     except BaseException:
         close(client, cluster)
         raise
     return client, cluster, info
+
+
+def register_stop_plugin(client, *, ignore_interrupt: bool) -> None:
+    """usdface's :class:`~usdface.pipeline.batch.worker_plugin.StopPlugin` on every worker of the
+    client's scheduler (again after the scheduler restarted: it forgets its plugins).
+
+    The scheduler keeps the plugin, for the workers that join later too, before it sends it to
+    its workers; their answers are awaited at most :data:`PLUGIN_WAIT` seconds: a worker that does
+    not answer (hung, paused, on a lost network) must not hold the batch, which goes on without
+    its answer (that worker's shots then stop as Dask's do)."""
+    import threading
+
+    from .worker_plugin import StopPlugin
+
+    failure = []
+
+    def register():
+        try:
+            client.register_plugin(StopPlugin(ignore_interrupt=ignore_interrupt))
+        except Exception as exc:  # noqa: BLE001 - a worker that refused or went away: said below
+            failure.append(exc)
+
+    thread = threading.Thread(target=register, name="usdface-register-plugin", daemon=True)
+    thread.start()
+    thread.join(PLUGIN_WAIT)
+    if thread.is_alive() or failure:
+        log.info("dask: not every worker confirmed usdface's stop handlers (%s); the batch goes on",
+                 f"{type(failure[0]).__name__}: {failure[0]}" if failure else f"no answer within {PLUGIN_WAIT:g} s")
 
 
 def stop(client, futures, outputs, exc: BaseException) -> None:

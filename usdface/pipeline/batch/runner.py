@@ -1,10 +1,13 @@
-"""Run a manifest's shots with dask.distributed: an in-process LocalCluster or a farm's scheduler.
+"""Run a manifest's shots: one after the other in this process, or with dask.distributed (an
+in-process LocalCluster or a farm's scheduler: :mod:`.dask_run`); skip current ones (``--resume``);
+write the batch summary and print its table.
 
 Each shot is one Dask task that runs the same processors as the command line (``run``, then
-``check`` if asked) through :func:`execute_shot`. A task never raises for a shot's own failure: it
-returns the shot's record (status, timings, error), so one broken shot never stops the others; a
-worker that dies is reported for the shots it was running. Workers compute with one BLAS and one
-numba thread (one shot per core, and the same floating-point operation order on every machine).
+``check`` if asked) through :func:`.shot.execute_shot`. A task never raises for a shot's own
+failure: it returns the shot's record (status, timings, error), so one broken shot never stops the
+others; a worker that dies is reported for the shots it was running. Workers compute with one BLAS
+and one numba thread (one shot per core, and the same floating-point operation order on every
+machine).
 """
 from __future__ import annotations
 
@@ -13,187 +16,16 @@ import logging
 import os
 import sys
 import time
-import traceback
 from pathlib import Path
 
-from ... import __version__, registry
-from ...errors import OptionError, UsdFaceError
-from ...options import BatchOptions, RunOptions
-from ..stopping import StopRequested, running_shot
+from ... import __version__
+from ...errors import OptionError
+from ...options import BatchOptions
 from .cluster import probe_scheduler
 from .manifest import Manifest, Shot
+from .shot import execute_shot, shot_is_current, with_manifest_line
 
 log = logging.getLogger("usdface")
-
-# -- one shot (runs on a worker) ------------------------------------------------------------------
-
-def execute_shot(shot: Shot, cache_root: str | None) -> dict:
-    """Run one shot in this process; returns its record (never raises for the shot's errors).
-
-    In a worker thread, a stop asked of the worker (SIGTERM, SIGHUP, a stopping batch) ends the
-    shot after it has removed its partial work: status ``interrupted``."""
-    started = time.perf_counter()
-    rec = {"name": shot.name, "output": shot.output, "mesh": shot.mesh, "capture": shot.capture,
-           "status": "failed", "seconds": None, "error": None, "steps": {}, "cache": {},
-           "host": _worker_name()}
-    try:
-        with running_shot(shot.output):
-            _execute(shot, cache_root, rec, started)
-    except StopRequested as exc:
-        rec["status"] = "interrupted"
-        rec["error"] = f"stopped by {exc} on {rec['host']}; partial work removed"
-    rec["seconds"] = round(time.perf_counter() - started, 3)
-    return rec
-
-
-def _execute(shot: Shot, cache_root: str | None, rec: dict, started: float) -> None:
-    try:
-        with single_threaded():
-            cache = None
-            if cache_root is not None:
-                from ...cache import ContentCache
-
-                cache = ContentCache(cache_root)
-            capture = shot.capture  # `run` tracks and lifts video captures itself
-            with registry.timed_calls() as clock:
-                summary = registry.call("run", shot.mesh, capture, options=RunOptions.from_mapping(shot.options),
-                                        output=shot.output, cache=cache).summary
-            rec["steps"] = {k: clock.get(k, v.get("seconds")) for k, v in summary["steps"].items()}
-            rec["steps"]["other"] = round(max(0.0, time.perf_counter() - started - sum(
-                x for x in rec["steps"].values() if isinstance(x, (int, float)))), 3)
-            rec["frames"] = summary["frames"]
-            rec["vertices"] = summary["vertices"]
-            rec["cache"] = {k: v["cache"]["status"] for k, v in summary["steps"].items() if "cache" in v}
-            for step in shot.processors:
-                if step not in ("run", "track"):
-                    _run_batch_step(step, shot, rec)
-            rec["status"] = "ok"
-    except UsdFaceError as exc:
-        rec["error"] = str(exc)
-        rec["status"] = "unsupported" if getattr(exc, "unsupported", False) else "failed"
-    except Exception as exc:  # noqa: BLE001 - a bug or a library error must not stop the batch
-        from ...fileutil import describe_exception, is_environment_fault
-
-        # file system, memory and USD errors: one line naming the file and the cause; a bug keeps
-        # its traceback in the summary for the report
-        rec["error"] = describe_exception(exc)
-        if not is_environment_fault(exc):
-            rec["traceback"] = traceback.format_exc(limit=8)
-
-
-def _run_batch_step(step: str, shot: Shot, rec: dict) -> None:
-    """A batch step a shot lists (``check``, a studio's processor): on the shot's stage, with its
-    default options; a non-zero exit code fails the shot."""
-    result = registry.call(step, str(Path(shot.output) / "shot.usda"))
-    findings = result.legacy if isinstance(result.legacy, list) else None  # a validator's findings
-    if findings is not None:
-        errors = [str(f) for f in findings if f.severity == "error"]
-        rec[step] = {"errors": len(errors), "findings": len(findings)}
-        if errors:
-            raise UsdFaceError(f"usdface {step} found {len(errors)} error(s) in shot.usda: {errors[0]}")
-        return
-    rec[step] = {"exitCode": result.exit_code}
-    if result.exit_code:
-        first = next((line for line in result.text if line.strip()), "")
-        raise UsdFaceError(f"usdface {step} exited {result.exit_code} on shot.usda: {first}")
-
-
-class single_threaded:
-    """One BLAS/OpenMP thread (threadpoolctl) and one numba thread while a shot runs."""
-
-    def __enter__(self):
-        from threadpoolctl import threadpool_limits
-
-        self._limits = threadpool_limits(limits=1)
-        self._numba = None
-        try:
-            import numba
-
-            self._numba = numba.get_num_threads()
-            numba.set_num_threads(1)
-        except (ImportError, ValueError):
-            pass
-        return self
-
-    def __exit__(self, *exc):
-        self._limits.restore_original_limits()
-        if self._numba is not None:
-            import numba
-
-            numba.set_num_threads(self._numba)
-        return False
-
-
-def _worker_name() -> str:
-    try:
-        from distributed import get_worker
-
-        return get_worker().address
-    except (ImportError, ValueError):
-        return "local"
-
-
-# -- resume ---------------------------------------------------------------------------------------
-
-def shot_is_current(shot: Shot) -> tuple[bool, str]:
-    """Whether OUTDIR holds this shot's outputs with matching provenance; (answer, reason).
-
-    Checks: every output file exists; summary.json's run provenance equals this shot's (usdface
-    version, options, input names and sha256); and each layer's provenance names the usdface
-    version and inputs whose sha256 equal the files in OUTDIR (the chain was not edited since).
-    """
-    from ...usd.shot_record import read_shot_record, verify_shot
-    from ..run import output_files, run_provenance
-
-    out = Path(shot.output)
-    opts = RunOptions.from_mapping(shot.options)
-    try:
-        summary = json.loads((out / "summary.json").read_text())
-    except (OSError, ValueError):
-        summary = None
-    files = summary.get("files") if isinstance(summary, dict) and summary.get("files") else \
-        output_files(opts.output_kind, video=shot.is_video, options=opts)
-    missing = [f for f in files if not (out / f).is_file()]
-    if missing:
-        return False, f"missing {', '.join(missing)}"
-    if summary is None:
-        return False, "summary.json unreadable"
-    problems = verify_shot(out / "shot.usda")
-    if problems:
-        return False, f"mixed or incomplete shot: {problems[0]}"
-    recorded = read_shot_record(out / "shot.usda") is not None
-    capture = shot.capture
-    if not Path(capture).is_file():
-        return False, "capture missing"
-    expected = run_provenance(shot.mesh, capture, opts)
-    if summary.get("provenance") != expected:
-        old = summary.get("provenance") or {}
-        what = [k for k in ("usdfaceVersion", "options", "inputs") if old.get(k) != expected.get(k)]
-        return False, f"provenance differs ({', '.join(what) or 'absent'})"
-    if recorded:  # every file is the one committed with the shot, and a commit holds one run's files
-        return True, "outputs current"
-    from ...usd.layers import file_digest
-
-    digests = {}
-    for name in [f for f in files if f.endswith((".usdc", ".usda")) and not f.startswith("shot")]:
-        prov = _layer_provenance(out / name)
-        if prov is None or prov.get("usdfaceVersion") != __version__:
-            return False, f"{name}: provenance absent or from another usdface version"
-        for role, rec in json.loads(prov.get("inputs", "{}")).items():
-            f = out / rec["file"]
-            if f.name in files:
-                if f.name not in digests:
-                    digests[f.name] = file_digest(f)
-                if digests[f.name] != rec["sha256"]:
-                    return False, f"{name}: its input {f.name} changed since it was written"
-    return True, "outputs current"
-
-
-def _layer_provenance(path: Path) -> dict | None:
-    from ...usd.layers import layer_provenance
-
-    return layer_provenance(path)
-
 
 # -- the batch ------------------------------------------------------------------------------------
 
@@ -259,11 +91,15 @@ def run_batch(manifest: Manifest, options: BatchOptions = BatchOptions(), *, sum
         if workers == 0 and not scheduler:
             for shot in todo:
                 status_out.start(shot)
-                records[shot.name] = rec = execute_shot(shot, cache_root)
+                records[shot.name] = rec = with_manifest_line(execute_shot(shot, cache_root, resume and not force),
+                                                              shot)
                 status_out.done(rec)
         else:
-            _run_dask(todo, cache_root, workers if workers is not None else manifest.workers, scheduler,
-                      records, info, status_out)
+            from .dask_run import run_on_dask
+
+            run_on_dask(todo, cache_root, workers=workers if workers is not None else manifest.workers,
+                        scheduler=scheduler, resume=resume and not force, records=records, info=info,
+                        status_out=status_out)
     status_out.close()
     ordered = [records[s.name] for s in manifest.shots]
     counts = {k: sum(r["status"] == k for r in ordered) for k in ("ok", "skipped", "failed", "unsupported")}
@@ -283,86 +119,6 @@ def run_batch(manifest: Manifest, options: BatchOptions = BatchOptions(), *, sum
     summary["_text"] = summary_table(summary)
     summary["_exit"] = 1 if counts["failed"] or counts["unsupported"] else 0
     return summary
-
-
-#: times a shot stopped on its worker (a farm draining a node: SIGTERM) is handed out again
-SHOT_ATTEMPTS = 3
-
-
-def _run_dask(todo, cache_root, workers, scheduler, records, info, status_out) -> None:
-    """The shots on Dask, longest first; a stopped batch leaves no partial work (:mod:`.cluster`)."""
-    from . import cluster as dask_cluster
-
-    n = workers or min(os.cpu_count() or 1, len(todo))
-    client, local, connected = dask_cluster.connect(scheduler, max(1, min(n, len(todo))))
-    info.update(connected)
-    futures: dict = {}
-    unfinished = {shot.name: shot for shot in todo}
-    try:
-        _submit_and_collect(client, todo, cache_root, futures, unfinished, records, info, status_out)
-    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP: stop the shots, then say so
-        from ..stopping import signals_deferred
-
-        with signals_deferred():
-            dask_cluster.stop(client, futures, [s.output for s in unfinished.values()], exc)
-            dask_cluster.close(client, local)
-            dask_cluster.tidy_shot_folders([s.output for s in unfinished.values()])
-        raise
-    except BaseException:
-        dask_cluster.close(client, local)
-        dask_cluster.tidy_shot_folders([s.output for s in unfinished.values()])
-        raise
-    dask_cluster.close(client, local)
-
-
-def _submit_and_collect(client, todo, cache_root, futures, unfinished, records, info, status_out) -> None:
-    from distributed import as_completed
-
-    from .cluster import dashboard_of, n_workers_of
-
-    info["workers"] = n_workers_of(client)
-    info["dashboard"] = dashboard_of(client)
-    status_out.note(f"dask: {info['mode']} scheduler {info['scheduler']}, {info['workers']} worker(s)"
-                    + (f", dashboard {info['dashboard']}" if info["dashboard"] else " (dashboard: pip install bokeh)"))
-    if info["workers"] == 0:
-        status_out.note("dask: the scheduler has no workers yet; shots wait until one connects")
-    attempts: dict[str, int] = {}
-
-    def submit(shot, priority):
-        attempts[shot.name] = attempts.get(shot.name, 0) + 1
-        fut = client.submit(execute_shot, shot, cache_root, pure=False, retries=0, priority=priority,
-                            key=f"usdface-shot-{shot.name}-{id(shot)}-{attempts[shot.name]}")
-        futures[fut] = shot
-        return fut
-
-    # longest first (LPT): a big character's takes submitted last would run one after the other
-    # at the end while the other workers sit idle; records stay in manifest order
-    pending = as_completed([submit(shot, len(todo) - rank)
-                            for rank, shot in enumerate(sorted(todo, key=shot_cost, reverse=True))], loop=client.loop)
-    for shot in todo:
-        status_out.start(shot)
-    for fut in pending:
-        shot = futures.pop(fut)
-        rec = _task_record(fut, shot)
-        if rec["status"] == "interrupted" and attempts[shot.name] < SHOT_ATTEMPTS:
-            log.info("%s: %s; handed out again", shot.name, rec["error"])
-            pending.add(submit(shot, len(todo)))
-            continue
-        if rec["status"] == "interrupted":
-            rec["status"] = "failed"
-        records[shot.name] = rec
-        unfinished.pop(shot.name, None)
-        status_out.done(rec)
-
-
-def _task_record(fut, shot: Shot) -> dict:
-    """The shot's record returned by its task, or a failed record saying why the task failed."""
-    try:
-        return fut.result()
-    except Exception as exc:  # noqa: BLE001 - KilledWorker, a worker out of memory...
-        return {"name": shot.name, "output": shot.output, "mesh": shot.mesh, "capture": shot.capture,
-                "status": "failed", "seconds": None, "cache": {},
-                "error": f"the Dask task failed: {type(exc).__name__}: {exc}"}
 
 
 def shot_cost(shot: Shot) -> float:
@@ -412,7 +168,7 @@ class _StatusPrinter:
         self.finished += 1
         self.bar.update(1)
         secs = f"{rec['seconds']:.1f} s" if rec.get("seconds") else ""
-        err = f"  {rec['error'].splitlines()[0]}" if rec.get("error") else ""
+        err = f"  {_error_line(rec)}" if rec.get("error") else ""
         self._write(f"[{self.finished}/{self.total}] {rec['status']:<11} {rec['name']} {secs}{err}")
 
     def close(self) -> None:
@@ -424,10 +180,9 @@ def summary_table(summary: dict) -> list[str]:
     rows = [("shot", "status", "seconds", "capture", "distances", "steps (s)", "error")]
     for r in summary["shots"]:
         c = r.get("cache", {})
-        err = (r.get("error") or r.get("reason") or "").splitlines()
+        err = _error_line(r) if r.get("error") else (r.get("reason") or "").split("\n")[0]
         rows.append((r["name"], r["status"], f"{r['seconds']:.1f}" if r.get("seconds") is not None else "-",
-                     c.get("import-capture", "-"), c.get("distances", "-"), step_times(r.get("steps")),
-                     (err[0] if err else "")[:100]))
+                     c.get("import-capture", "-"), c.get("distances", "-"), step_times(r.get("steps")), err[:100]))
     widths = [max(len(row[i]) for row in rows) for i in range(6)]
     lines = ["  ".join(v.ljust(w) for v, w in zip(row[:6], widths)) + "  " + row[6] for row in rows]
     lines.insert(1, "  ".join("-" * w for w in widths) + "  -----")
@@ -440,6 +195,12 @@ def summary_table(summary: dict) -> list[str]:
                  + (f"; cache {cache_txt}" if cache_txt else ""))
     lines.append(f"summary: {summary['summaryFile']}")
     return lines
+
+
+def _error_line(rec: dict) -> str:
+    """A failed shot's first error line, after its manifest line: ``line 12: bind step failed: ...``."""
+    first = rec["error"].splitlines()[0] if rec["error"].strip() else rec["error"]
+    return f"line {rec['manifestLine']}: {first}" if rec.get("manifestLine") else first
 
 
 def step_times(steps) -> str:
