@@ -84,6 +84,22 @@ class Farm:
                     raise RuntimeError("the Dask cluster did not start; logs in " + str(self.logs)) from None
                 time.sleep(0.5)
 
+    def remove_worker(self, pid: int) -> str:
+        """The scheduler declares the worker of process ``pid`` (a worker without a nanny) gone, as
+        when it stops answering, without asking it (a paused worker cannot answer); returns its
+        address."""
+        from distributed import Client
+
+        async def remove(address, dask_scheduler=None):
+            return await dask_scheduler.remove_worker(address=address, stimulus_id="batch-faults-remove")
+
+        name = next(f"w{i}" for i, p in enumerate(self.workers) if p.pid == pid)  # without a nanny
+        with Client(self.address, timeout="10s") as c:
+            workers = c.scheduler_info(n_workers=-1)["workers"]
+            address = next(a for a, w in workers.items() if w.get("name") == name)
+            c.run_on_scheduler(remove, address)
+        return address
+
     def kill_scheduler(self) -> None:
         self.scheduler.send_signal(signal.SIGKILL)
         self.scheduler.wait()
