@@ -2,8 +2,13 @@
 content-addressed cache (:mod:`usdface.cache`).
 
 - :mod:`.manifest` reads and checks a TOML manifest (every problem before any work);
-- :mod:`.runner` runs the shots (`run`, then the batch steps a shot lists, through the registry)
-  serially or on a Dask cluster, and writes the batch summary.
+- :mod:`.runner` runs the shots serially or on Dask, skips current ones (``--resume``) and writes
+  the batch summary; :mod:`.shot` runs one shot (`run`, then the batch steps it lists, through the
+  registry) as a worker does; :mod:`.dask_run` hands the shots out and collects them, again after a
+  worker stopped them or the scheduler came back; :mod:`.cluster` connects to Dask and stops a
+  batch without leaving partial work (Ctrl-C, SIGTERM, SIGHUP);
+- :mod:`.report` writes the batch's HTML report, after the shots or from a finished batch's
+  summary (``--report-only``).
 
 >>> from usdface import api
 >>> api.batch("shots.toml", {"workers": 2, "resume": True})        # doctest: +SKIP
