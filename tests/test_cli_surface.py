@@ -11,7 +11,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 #: arguments added since 0.2.0, on purpose: {(command, flags): why}; nothing else may change
-ADDED: dict = {}
+ADDED: dict = {
+    ("batch", "--report-only"): "issue 20: rebuild a finished batch's HTML report from its summary without running "
+                                "or checking any shot (--report re-ran the shots unless --resume)",
+}
 
 
 def _surface_module():

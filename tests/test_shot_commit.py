@@ -238,3 +238,45 @@ def test_folder_and_nested_deliverables_are_committed_and_checked(tmp_path):
     assert leftovers(out) == [] and verify_shot(out / "shot.usda") == []
     (out / "playblast" / "f.0001.png").write_bytes(b"another run's frame")
     assert verify_shot(out / "shot.usda") == ["playblast is not the file committed with this shot (its bytes differ)"]
+
+
+def test_tidy_under_the_lock_removes_this_hosts_run_folders_whatever_their_pid(tmp_path):
+    """A run keeps OUTDIR's lock while its work folder lives: whoever holds the lock finds only dead
+    runs' folders, even when their pid still runs (a Dask worker outlives its shots). Another host's
+    recent run folder cannot be asked and stays."""
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        live = tmp_path / f".usdface-run-{sleeper.pid}@{HOST_TAG}-ab12cd34"
+        other_host = tmp_path / f".usdface-run-{sleeper.pid}@farm_node_7-ab12cd35"
+        for work in (live, other_host):
+            work.mkdir()
+            (work / "anim.usdc").write_bytes(b"partial")
+        report = tidy(tmp_path)
+    finally:
+        sleeper.kill()
+        sleeper.wait()
+    assert report["removed"] == [live.name] and report["kept"] == [other_host.name]
+    assert not live.exists() and other_host.exists()
+
+
+def test_tidy_unlocked_folder_removes_a_lock_nobody_holds(tmp_path):
+    from usdface.pipeline.shot_commit import tidy_unlocked_folder
+
+    # a SIGKILLed run's lock file, and nothing else: removed
+    (tmp_path / LOCK_NAME).write_text(json.dumps({"pid": _dead_pid(), "host": "x", "hostTag": HOST_TAG}))
+    assert tidy_unlocked_folder(tmp_path) is not None
+    assert not (tmp_path / LOCK_NAME).exists()
+    # a lock a live process holds: left to it, with its work folder
+    code = ("import sys, time; from usdface.pipeline.shot_commit import ShotSession; "
+            "s = ShotSession(sys.argv[1], 'r'); s.open(); print(s.work.name, flush=True); time.sleep(60)")
+    p = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE, text=True)
+    try:
+        work = p.stdout.readline().strip()
+        assert tidy_unlocked_folder(tmp_path) is None
+        assert sorted(x.name for x in tmp_path.iterdir()) == sorted([LOCK_NAME, work])
+    finally:
+        p.kill()
+        p.wait()
+    # once it is dead (SIGKILL: no clean-up), the lock and its work folder go
+    assert tidy_unlocked_folder(tmp_path)["removed"] == [work]
+    assert list(tmp_path.iterdir()) == []

@@ -7,7 +7,7 @@ Layout on disk::
         <files...>                        the payload (an .npz of arrays, a copied layer, ...)
     ROOT/<kind>/.tmp-<pid>@<host>-<token>/  an entry being written (removed by the next batch once its
                                           writer is dead: :meth:`ContentCache.tidy`)
-    ROOT/locks/<kind>-<key>.lock          advisory locks (one machine); Dask locks on a farm
+    ROOT/locks/<kind>-<key>.lock          advisory locks (flock): one process computes a value, the others wait
 
 An entry is written into a temporary folder beside its final place, every file fsynced, and the
 folder renamed into place in one ``os.rename``: readers see a whole entry or none. When two
@@ -30,6 +30,7 @@ import os
 import secrets
 import shutil
 import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,6 +42,8 @@ from .fileutil import HOST_TAG, TEMPORARY_MAX_AGE, file_digest, fsync_dir, owner
 
 log = logging.getLogger("usdface")
 
+#: how often a process waiting for another's computation of an entry looks again (seconds)
+LOCK_POLL = 0.05
 #: extra free space (bytes) kept on the cache's disk beyond an entry's size
 FREE_SPACE_MARGIN = 64 << 20
 _DISK_FULL = {errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC), errno.EFBIG}
@@ -106,10 +109,14 @@ class ContentCache:
     root : path
         The cache folder (created if missing; its parent must exist).
     lock : {"auto", "file", "dask", "none"}
-        How :meth:`lock` serialises computations of one key: ``file`` takes an advisory lock
-        (``fcntl.flock``) on a file in ROOT/locks (processes of one machine), ``dask`` a
-        ``distributed.Lock`` on the Dask scheduler (every worker of a farm), ``auto`` the Dask
-        lock inside a Dask worker and the file lock elsewhere.
+        How :meth:`lock` serialises computations of one key (only to avoid computing a value twice:
+        entries are written atomically, so racing writers never corrupt one): ``file`` takes an
+        advisory lock (``fcntl.flock``) on a file in ROOT/locks, which the system releases the
+        moment its holder dies (every host of a network file system that supports locks, NFSv4
+        for one); ``dask`` a ``distributed.Lock`` on the Dask scheduler, for a shared file system
+        without locks (a dead holder blocks the others until its lease times out, 30 s by default,
+        and a restarted scheduler forgets every lock); ``auto`` the file lock, or the Dask lock in
+        a Dask worker where the cache's file system refuses file locks.
 
     Examples
     --------
@@ -296,34 +303,52 @@ class ContentCache:
     def lock(self, kind: str, key: str, timeout: float | None = None):
         """Hold a lock on (kind, key) so one process computes a value while the others wait for it."""
         how = self.lock_kind
-        if how == "auto":
-            how = "dask" if _in_dask_worker() else "file"
+        if how in ("auto", "file"):
+            fd = self._file_lock(kind, key, required=how == "file")
+            if fd is not None:
+                try:
+                    yield
+                finally:
+                    _unlock(fd)
+                return
+            how = "dask" if _in_dask_worker() else "none"  # auto, on a file system without locks
         if how == "none":
             yield
             return
-        if how == "dask":
-            from distributed import Lock
+        from distributed import Lock
 
-            lk = Lock(f"usdface-cache-{kind}-{key}")
-            lk.acquire(timeout=timeout)
-            try:
-                yield
-            finally:
+        lk = Lock(f"usdface-cache-{kind}-{key}")
+        lk.acquire(timeout=timeout)
+        try:
+            yield
+        finally:
+            with contextlib.suppress(Exception):  # a restarted scheduler forgot the lock: nothing to release
                 lk.release()
-            return
+
+    def _file_lock(self, kind: str, key: str, *, required: bool) -> int | None:
+        """An exclusive flock on ROOT/locks/<kind>-<key>.lock (its fd), or None where the file
+        system has no locks (unless ``required``)."""
         import fcntl
 
         locks = self.root / "locks"
         self._mkdir(locks)
         fd = os.open(locks / f"{kind}-{key}.lock", os.O_RDWR | os.O_CREAT, 0o666)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-            yield
-        finally:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_UN)
-            finally:
-                os.close(fd)
+            while True:  # polled, so a stopped shot (Ctrl-C, a stop asked of a worker thread) stops waiting
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    time.sleep(LOCK_POLL)
+        except OSError as exc:
+            os.close(fd)
+            if required or exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
+                raise
+            return None
+        except BaseException:
+            os.close(fd)
+            raise
+        return fd
 
     # -- housekeeping ----------------------------------------------------------------------------
 
@@ -342,8 +367,6 @@ class ContentCache:
     def tidy(self, *, max_age: float | None = None) -> list[str]:
         """Remove entries being written or discarded by processes that are dead (this host: no such
         process; other hosts: older than usdface.fileutil.TEMPORARY_MAX_AGE); returns their names."""
-        import time
-
         max_age = TEMPORARY_MAX_AGE if max_age is None else max_age
         removed = []
         for kind_dir in (p for p in self.root.iterdir() if p.is_dir() and p.name != "locks"):
@@ -361,6 +384,15 @@ class ContentCache:
         if removed:
             log.info("cache %s: removed %d entries left half-written by stopped processes", self.root, len(removed))
         return removed
+
+
+def _unlock(fd: int) -> None:
+    import fcntl
+
+    try:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
 
 
 def _in_dask_worker() -> bool:

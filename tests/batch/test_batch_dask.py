@@ -119,7 +119,7 @@ def test_farm_matches_serial_caches_and_resumes(tmp_path, make_manifest, dask_fa
             assert a == b, f"{rel}/{name} differs between serial and farm runs"
     # and to a plain `usdface run` of the same shot (no cache) with one BLAS thread; with the
     # machine's default BLAS threads the float32 GEMM sums in another order: last-bit differences
-    from usdface.pipeline.batch.runner import single_threaded
+    from usdface.pipeline.batch.shot import single_threaded
 
     shot = next(r for r in ok if r["name"] == "makehuman_hm08_face_cm/JawMoCap")
     sa = Path(shot["mesh"]).parents[1]

@@ -101,3 +101,46 @@ def test_full_cache_fails_the_shot_clearly(tmp_path, make_manifest, monkeypatch)
     assert "too little free space" in s["shots"][0]["error"]
     assert ContentCache(m.cache).entries() == []
     assert s["_exit"] == 1
+
+
+def test_a_killed_holder_of_an_entry_blocks_nobody(tmp_path):
+    """A worker SIGKILLed while it computes an entry: the next process waiting for that entry gets
+    the lock at once (the system releases a dead process's flock). With Dask's lock, the default
+    inside a worker until now, it waited for the lease to time out (30 s; 26-28 s measured in
+    benchmarks/batch_faults.py scenario b)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    root = tmp_path / "c"
+    code = ("import sys, time; from usdface.cache import ContentCache; c = ContentCache(sys.argv[1]); "
+            "cm = c.lock('distances', 'k'); cm.__enter__(); print('holding', flush=True); time.sleep(60)")
+    p = subprocess.Popen([sys.executable, "-c", code, str(root)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "holding"
+        c = ContentCache(root)
+        got = []
+        waiter = threading.Thread(target=lambda: got.append(c.lock("distances", "k").__enter__()))
+        waiter.start()
+        waiter.join(0.5)
+        assert waiter.is_alive()  # a live holder makes it wait
+        os.kill(p.pid, signal.SIGKILL)
+        t0 = time.monotonic()
+        waiter.join(5)
+        assert not waiter.is_alive() and time.monotonic() - t0 < 1.0
+    finally:
+        p.kill()
+        p.wait()
+
+
+def test_auto_takes_the_file_lock_in_a_dask_worker(tmp_path, monkeypatch):
+    """In a Dask worker too: the file lock, not the scheduler's (which a dead worker holds for its
+    lease and a restarted scheduler forgets)."""
+    import usdface.cache as cache
+
+    monkeypatch.setattr(cache, "_in_dask_worker", lambda: True)
+    c = ContentCache(tmp_path / "c")
+    with c.lock("distances", "k"):
+        assert (tmp_path / "c" / "locks" / "distances-k.lock").is_file()

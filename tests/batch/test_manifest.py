@@ -1,6 +1,8 @@
 """Manifest parsing: keys, globs, placeholders, and bad input reported before any work."""
 from __future__ import annotations
 
+import json
+
 from usdface.options import BatchOptions
 
 import os
@@ -108,3 +110,32 @@ def test_video_capture_is_tracked_lifted_and_transferred(tmp_path, sample_assets
     out = Path(s["shots"][0]["output"])
     assert (out / "tracks.usdc").is_file() and (out / "anim.usdc").is_file()
     assert s["_exit"] == 0
+
+
+def test_shots_of_one_mesh_and_capture_are_told_apart(tmp_path, sample_assets, capsys):
+    """Windows of one take (two entries, same mesh and capture): each shot its own name and record;
+    the summary accounts for both (one overwrote the other's record), a failed one names its
+    manifest line."""
+    from usdface.cli import main
+
+    sa = sample_assets
+    shot = (f'mesh = "{sa}/meshes/makehuman_hm08_face_cm.obj"\n'
+            f'layout = "{sa}/layouts/makehuman_hm08_face.layout.json"\n'
+            f'capture = "{sa}/capture/JawMoCap.ma"\nmethod = "euclidean"\n')
+    p = tmp_path / "windows.toml"
+    p.write_text(f'[batch]\nsummary = "out/s.json"\n\n[[shots]]\n{shot}trim = [0, 30]\noutput = "out/a"\n\n'
+                 f'[[shots]]\n{shot}trim = [30, 60]\noutput = "out/b"\n\n[[shots]]\n{shot}trim = [5000, 5030]\n'
+                 'output = "out/past_the_end"\n')
+    names = [s.name for s in load_manifest(p).shots]
+    assert names == ["makehuman_hm08_face_cm/JawMoCap (out/a)", "makehuman_hm08_face_cm/JawMoCap (out/b)",
+                     "makehuman_hm08_face_cm/JawMoCap (out/past_the_end)"]
+    capsys.readouterr()
+    assert main(["batch", str(p), "--workers", "0"]) == 1
+    err = capsys.readouterr().err
+    summary = json.loads((tmp_path / "out" / "s.json").read_text())
+    assert [r["name"] for r in summary["shots"]] == names
+    assert [r["status"] for r in summary["shots"]] == ["ok", "ok", "failed"]
+    assert [r["output"] for r in summary["shots"]] == [str(tmp_path / "out" / n) for n in ("a", "b", "past_the_end")]
+    assert "manifestLine" not in summary["shots"][0] and summary["shots"][2]["manifestLine"] == 20
+    assert ("failed      makehuman_hm08_face_cm/JawMoCap (out/past_the_end) " in err
+            and "  line 20: import-capture step failed: --trim 5000 5030: expected" in err)

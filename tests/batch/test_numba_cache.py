@@ -86,7 +86,10 @@ def _read_only_install(tmp_path: Path) -> None:
 
 
 def test_configure_falls_back_when_nothing_is_writable(monkeypatch, tmp_path):
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    # set, then removed: monkeypatch records the variable's state before the test (absent too) and
+    # restores it; configure() sets it directly, which would otherwise leak into later tests
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "")
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     writable = {str(tmp_path / "xdg" / "usdface" / "numba")}
     monkeypatch.setattr(numba_cache, "_writable", lambda p: str(p) in writable)

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from usdface.pipeline.batch.manifest import load_manifest
-from usdface.pipeline.batch.runner import PROBE_TIMEOUT, probe_scheduler
+from usdface.pipeline.batch.cluster import PROBE_TIMEOUT, probe_scheduler
 from usdface.errors import EnvironmentFault, InputError
 
 SA = Path(__file__).resolve().parents[2] / "sample_assets"

@@ -46,8 +46,20 @@ class BatchOptions(Options):
     out_root: str | None = option(None, flag="--out-root", coerce=path, metavar="DIR", group="paths",
                                   help="resolve relative outputs, cache and summary against DIR instead of the "
                                        "manifest's folder")
+    report_only: bool = option(False, flag="--report-only", coerce=boolean, group="paths",
+                               help="only write the HTML report of the finished batch from its summary (beside it, "
+                                    "or --report FILE.html): no shot is run or checked")
 
     def validate(self) -> None:
         super().validate()
         if self.workers is not None and self.scheduler:
             raise OptionError("--workers sizes the local cluster; with --scheduler the farm's workers run the shots")
+        if self.report_only:
+            running = [flag for flag, given in (("--workers", self.workers is not None),
+                                                ("--scheduler", self.scheduler is not None),
+                                                ("--resume", self.resume), ("--force", self.force),
+                                                ("--no-cache" if self.cache is False else "--cache",
+                                                 self.cache is not None)) if given]
+            if running:
+                raise OptionError(f"--report-only writes the report of the finished batch from its summary and runs "
+                                  f"no shot: leave out {', '.join(running)}")

@@ -34,10 +34,17 @@ Temporaries (work folders, ``.<name>.tmp-<pid>@<host>-...`` files) are removed b
 into the folder, and by ``usdface batch`` for each shot folder and the cache, when their owner is
 dead: named by a process of this host that no longer runs (or whose pid was reused since), or
 older than :data:`TEMPORARY_MAX_AGE` (24 hours: owners on other hosts cannot be asked). A run
-folder holding ``COMMIT.json`` has its commit completed first.
+folder of this host found by a process holding the folder's lock is dead whatever its pid says
+(a run keeps the lock while its folder lives; a long-lived Dask worker's pid outlives its shots).
+A run folder holding ``COMMIT.json`` has its commit completed first.
 
-Test hook: ``USDFACE_TEST_KILL_AT=<step>`` (tests only) makes the commit send itself SIGKILL right
-after ``<step>``; :func:`commit_steps` lists the steps of a run's files.
+Test hooks (tests and benchmarks only): ``USDFACE_TEST_KILL_AT=<step>`` makes the commit send
+itself SIGKILL right after ``<step>``; :func:`commit_steps` lists the steps of a run's files.
+``USDFACE_TEST_LOCK_LOG=<file>`` appends a JSON line to ``<file>`` each time an OUTDIR lock is
+taken (after) or released (before), naming the folder, the process, why it locks (``run``,
+``tidy``, ``probe``), and, when taken, the holder a killed process left in the lock file and the
+live processes' run folders present: benchmarks/batch_faults.py checks from it that no two
+writers ever held one folder.
 """
 from __future__ import annotations
 
@@ -50,14 +57,14 @@ import secrets
 import shutil
 import signal
 import socket
-import threading
 import time
 from pathlib import Path
 
-from ..errors import LockedError, stop_signals
+from ..errors import LockedError
 from ..fileutil import (HOST_TAG, TEMPORARY_MAX_AGE, format_bytes, fsync_dir, fsync_file, inject_fault, owner_is_dead,
                         same_file_problems, temporary_owner, write_error)
 from ..usd.shot_record import MARKER_NAME, RUN_FOLDER_PREFIX, SUMMARY_NAME, is_shot_stage, leftovers, shot_record
+from .stopping import signals_deferred
 
 log = logging.getLogger("usdface")
 
@@ -65,6 +72,8 @@ LOCK_NAME = ".usdface-lock"
 #: temporaries whose owner cannot be asked (another host) are removed after this many seconds
 #: environment variable of the kill test hook (module docstring)
 KILL_ENV = "USDFACE_TEST_KILL_AT"
+#: environment variable of the lock audit hook (module docstring)
+LOCK_LOG_ENV = "USDFACE_TEST_LOCK_LOG"
 
 
 def run_id(provenance: dict) -> str:
@@ -96,10 +105,11 @@ def _step(name: str) -> None:
 class OutdirLock:
     """``FOLDER/.usdface-lock``: one writer at a time; the holder's host, pid and start time inside."""
 
-    def __init__(self, folder):
+    def __init__(self, folder, *, purpose: str = "run"):
         self.folder = Path(folder)
         self.path = self.folder / LOCK_NAME
         self.fd: int | None = None
+        self.purpose = purpose  # what the lock is taken for (the audit hook's record)
 
     def acquire(self) -> None:
         """Take the lock or raise :class:`~usdface.errors.LockedError` naming the holder."""
@@ -127,6 +137,8 @@ class OutdirLock:
                 same = False
             if same:
                 self.fd = fd
+                if os.environ.get(LOCK_LOG_ENV):
+                    _audit(self, "acquire", _read_holder(fd))
                 self._write_holder()
                 return
             os.close(fd)
@@ -171,11 +183,33 @@ class OutdirLock:
     def release(self) -> None:
         if self.fd is None:
             return
+        if os.environ.get(LOCK_LOG_ENV):
+            _audit(self, "release")
         with contextlib.suppress(OSError):
             self.path.unlink()
         with contextlib.suppress(OSError):
             os.close(self.fd)
         self.fd = None
+
+
+def _audit(lock: OutdirLock, event: str, previous: dict | None = None) -> None:
+    """The lock audit hook (module docstring): one JSON line, appended in one write."""
+    record = {"t": time.time(), "event": event, "purpose": lock.purpose, "folder": str(lock.folder.resolve()),
+              "pid": os.getpid(), "host": HOST_TAG}
+    if event == "acquire":
+        stale = (previous or {}).get("pid")
+        if stale is not None and (previous or {}).get("hostTag") == HOST_TAG:
+            from ..fileutil import process_alive
+
+            record["previous"] = {"pid": stale, "alive": process_alive(int(stale))}
+        record["liveRunFolders"] = [p.name for p in leftovers(lock.folder) if p.name.startswith(RUN_FOLDER_PREFIX)
+                                    and owner_is_dead(p.name, p.lstat().st_mtime) is False
+                                    and (temporary_owner(p.name) or (0,))[0] != os.getpid()]
+    fd = os.open(os.environ[LOCK_LOG_ENV], os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        os.write(fd, (json.dumps(record) + "\n").encode())
+    finally:
+        os.close(fd)
 
 
 def _read_holder(fd: int) -> dict:
@@ -186,9 +220,10 @@ def _read_holder(fd: int) -> dict:
         return {}
 
 
-def _is_locked(folder: Path) -> bool:
-    """Whether a live process holds FOLDER's lock (without taking it)."""
-    lock = OutdirLock(folder)
+def folder_in_use(folder) -> bool:
+    """Whether a live process holds FOLDER's lock (a run writes it); the lock is taken for a moment
+    to tell."""
+    lock = OutdirLock(folder, purpose="probe")
     if not lock.path.exists():
         return False
     try:
@@ -304,8 +339,8 @@ def tidy(folder, *, keep=(), max_age: float = TEMPORARY_MAX_AGE) -> dict:
         except OSError:
             continue
         dead = owner_is_dead(path.name, path.lstat().st_mtime)
-        if path.name.startswith(RUN_FOLDER_PREFIX) and temporary_owner(path.name) == (os.getpid(), HOST_TAG):
-            dead = True  # this process's own earlier run (it failed): the caller holds the lock, so not in use
+        if path.name.startswith(RUN_FOLDER_PREFIX) and (temporary_owner(path.name) or (0, None))[1] == HOST_TAG:
+            dead = True  # the caller holds the lock that every run of this host holds while its folder lives
         if dead is False or (dead is None and now - mtime < max_age):
             report["kept"].append(path.name)
             continue
@@ -330,11 +365,12 @@ def tidy(folder, *, keep=(), max_age: float = TEMPORARY_MAX_AGE) -> dict:
 
 
 def tidy_unlocked_folder(folder) -> dict | None:
-    """:func:`tidy` ``folder`` under its lock, unless a live run holds it (then None)."""
+    """:func:`tidy` ``folder`` under its lock, unless a live run holds it (then None); a lock file
+    that nobody holds (its run was killed) is removed with the lock."""
     folder = Path(folder)
-    if not folder.is_dir() or not leftovers(folder):
+    if not folder.is_dir() or not (leftovers(folder) or (folder / LOCK_NAME).exists()):
         return None
-    lock = OutdirLock(folder)
+    lock = OutdirLock(folder, purpose="tidy")
     try:
         lock.acquire()
     except LockedError:
@@ -343,31 +379,6 @@ def tidy_unlocked_folder(folder) -> dict | None:
         return tidy(folder)
     finally:
         lock.release()
-
-
-@contextlib.contextmanager
-def _signals_deferred():
-    """SIGINT, SIGTERM and SIGHUP wait until the block ends (a commit is never stopped half-way),
-    then act."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    pending: list[int] = []
-    sigs = list(stop_signals())
-    previous = {}
-    try:
-        for s in sigs:
-            previous[s] = signal.signal(s, lambda signum, frame: pending.append(signum))
-    except ValueError:  # not the main interpreter
-        yield
-        return
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-        if pending:
-            signal.raise_signal(pending[0])
 
 
 # -- one run's session ----------------------------------------------------------------------------
@@ -455,7 +466,7 @@ class ShotSession:
             raise RuntimeError(f"commit: {', '.join(missing)} not written")  # a bug, not a user error
         plan = {"runId": self.run_id, "files": order, "stale": self._stale(order), "pid": os.getpid(),
                 "host": HOST_TAG}
-        with _signals_deferred():
+        with signals_deferred():
             try:
                 for name in order:
                     _fsync_tree(self.work / name)

@@ -2,8 +2,13 @@
 content-addressed cache (:mod:`usdface.cache`).
 
 - :mod:`.manifest` reads and checks a TOML manifest (every problem before any work);
-- :mod:`.runner` runs the shots (`run`, then the batch steps a shot lists, through the registry)
-  serially or on a Dask cluster, and writes the batch summary.
+- :mod:`.runner` runs the shots serially or on Dask, skips current ones (``--resume``) and writes
+  the batch summary; :mod:`.shot` runs one shot (`run`, then the batch steps it lists, through the
+  registry) as a worker does; :mod:`.dask_run` hands the shots out and collects them, again after a
+  worker stopped them or the scheduler came back; :mod:`.cluster` connects to Dask and stops a
+  batch without leaving partial work (Ctrl-C, SIGTERM, SIGHUP);
+- :mod:`.report` writes the batch's HTML report, after the shots or from a finished batch's
+  summary (``--report-only``).
 
 >>> from usdface import api
 >>> api.batch("shots.toml", {"workers": 2, "resume": True})        # doctest: +SKIP
@@ -25,10 +30,16 @@ def batch(manifest, *, options: BatchOptions, summary=None, report=None) -> Resu
     usdface-batch-summary.json); ``report``: also write the HTML batch report to this file, or
     beside the batch summary (``.html``) when ``True``. The Result's ``exit_code`` is 1 if any
     shot failed; its ``text`` is the shot table.
+
+    With ``options.report_only``, no shot runs: the report is rebuilt from the summary of the
+    finished batch (``summary``, default the manifest's) by :func:`.report.report_only`.
     """
     from .manifest import check_batch_outputs, load_manifest
+    from .report import report_only, write_batch_report
     from .runner import run_batch
 
+    if options.report_only:  # the report of the finished batch, from its summary: no shot runs
+        return report_only(manifest, summary, report, out_root=options.out_root)
     m = load_manifest(manifest, out_root=options.out_root)
     summary_file = summary or m.summary
     report_file = None if report in (None, False) else Path(summary_file).with_suffix(".html") if report is True \
@@ -42,9 +53,7 @@ def batch(manifest, *, options: BatchOptions, summary=None, report=None) -> Resu
     result = run_batch(m, options, summary_path=summary)
     files = {"summary": result["summaryFile"]}
     if report not in (None, False):
-        from ..report import batch_report
-
-        rep = batch_report(result, None if report is True else report)
+        rep = write_batch_report(result, None if report is True else report)
         result["report"] = rep.files["output"]
         files["report"] = rep.files["output"]
         result["_text"] = list(result.get("_text", [])) + rep.text

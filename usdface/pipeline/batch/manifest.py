@@ -162,6 +162,7 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
         if value is not None and problem:
             ctx.problems.append(problem)
     _raise_problems(ctx, check_files)
+    shots = _unique_names(shots, ctx.out_base)
     _check_outputs(path, shots, cache_path, summary_path)
     return Manifest(path=path, shots=shots, cache=cache_path, summary=summary_path,
                     workers=batch.get("workers"), scheduler=batch.get("scheduler"))
@@ -383,6 +384,16 @@ def _outside(path, out_root, out_base: Path, what: str) -> str | None:
         return None
     return (f"{what} resolves to {p}, outside --out-root {root}; with --out-root, outputs, the cache and the "
             "summary stay inside it")
+
+
+def _unique_names(shots: list, out_base: Path) -> list:
+    """Shots of one mesh and capture (windows of a take, two methods) are told apart by their output
+    folder: ``mesh/capture (out/mesh/capture_w0040)``. A shot's name keys its record in the summary."""
+    from collections import Counter
+
+    count = Counter(s.name for s in shots)
+    return [dataclasses.replace(s, name=f"{s.name} ({os.path.relpath(s.output, out_base)})")
+            if count[s.name] > 1 else s for s in shots]
 
 
 def _clashes(shots, cache_path, summary_path) -> list[str]:
