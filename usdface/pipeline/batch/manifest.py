@@ -392,8 +392,10 @@ def _unique_names(shots: list, out_base: Path) -> list:
     from collections import Counter
 
     count = Counter(s.name for s in shots)
+    # shots that also share their folder clash; the clash names their captures instead (_clashes)
+    same_folder = Counter((s.name, s.output) for s in shots)
     return [dataclasses.replace(s, name=f"{s.name} ({os.path.relpath(s.output, out_base)})")
-            if count[s.name] > 1 else s for s in shots]
+            if count[s.name] > 1 and same_folder[s.name, s.output] == 1 else s for s in shots]
 
 
 def _clashes(shots, cache_path, summary_path) -> list[str]:
