@@ -29,16 +29,24 @@ def _rules():
     return module
 
 
-def _is_numba(node) -> bool:
-    return any("jit" in ast.unparse(d) for d in node.decorator_list)
+def _is_numba(node, wrapped: set) -> bool:
+    return node.name in wrapped or any("jit" in ast.unparse(d) for d in node.decorator_list)
+
+
+def _jit_wrapped(tree) -> set:
+    """Names of functions compiled by a call rather than a decorator (``njit(...)(_kernel_py)``,
+    which keeps the plain Python function for when numba is missing): kernels too."""
+    return {arg.id for node in ast.walk(tree) if isinstance(node, ast.Call) and isinstance(node.func, ast.Call)
+            and "jit" in ast.unparse(node.func.func) for arg in node.args if isinstance(arg, ast.Name)}
 
 
 def functions(root: Path):
     """(path, name, lines, parameters) of every function outside numba kernels."""
     for path in sorted((root / "usdface").rglob("*.py")):
         tree = ast.parse(path.read_text())
+        wrapped = _jit_wrapped(tree)
         for node in ast.walk(tree):
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not _is_numba(node):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not _is_numba(node, wrapped):
                 a = node.args
                 names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs if x.arg not in ("self", "cls")]
                 n = len(names) + bool(a.vararg) + bool(a.kwarg)
