@@ -3,7 +3,10 @@
 - :mod:`usdface.evaluation.quality`: transfer ground-truth expression shapes through their marker
   displacements with each distance method / RBF mode / pinned-border variant and measure the
   vertex errors per face region; the paper's claim (Euclidean artifacts around the mouth and eyes)
-  made measurable.
+  made measurable. Its parts: :mod:`~usdface.evaluation.configs` (what a row transfers with),
+  :mod:`~usdface.evaluation.regions` (error regions, pinned vertices), :mod:`~usdface.evaluation.setup`
+  (distances and fitted transfers), :mod:`~usdface.evaluation.results` (errors, the report) and
+  :mod:`~usdface.evaluation.tables` (summaries, markdown).
 """
 from __future__ import annotations
 
