@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from ..errors import OptionError
 
@@ -44,25 +45,40 @@ class TransferConfig:
     kernel : str
         RBF kernel (``gaussian`` = paper Eq. 3).
     width_cm : float or None
-        Kernel width of every centre in cm; None = the pipeline's rule (1.1 x the median
-        Euclidean nearest-marker distance between the bound points).
-    polynomial : bool
-        Linear polynomial term (interpolate mode).
+        Kernel width of every centre in cm; None = the width rule.
+    polynomial : "auto", True or False
+        Linear polynomial term (interpolate mode); "auto" = the pipeline's default (exactly the
+        kernels that need it, :func:`usdface.rbf.soundness.resolve_polynomial`).
     pin : {"border", "none", "upper"}
         Which outer-border vertices are zero-displacement centres (no effect in paper mode, where
         constraint centres get zero weight).
-    backend : {"graph", "heat", "exact"}
+    backend : {"graph", "fmm", "heat", "exact"}
         Geodesic back-end (geodesic and hybrid).
+    threshold : float, optional
+        Hybrid threshold (default the setup's).
+    width_rule : None, "legacy" or WidthRule
+        When ``width_cm`` is None: None = the pipeline's rule for the mode
+        (:func:`usdface.rbf.stiffness.transfer_widths`); "legacy" = 1.1 x the median Euclidean
+        nearest-marker distance for every centre (the rule of every mode before the per-marker
+        rule); a :class:`usdface.rbf.stiffness.WidthRule` = that rule on the config's distances.
+    regularization : "auto" or float
+        As ``--regularization`` (default "auto", the pipeline's).
+    check : bool
+        Refuse kernel and method pairs with no well-posed variant, as the pipeline does (False: to
+        measure them).
     """
 
     method: str
     mode: str = "interpolate"
     kernel: str = "gaussian"
     width_cm: float | None = None
-    polynomial: bool = False
+    polynomial: Any = "auto"
     pin: str = "border"
     backend: str = "graph"
     threshold: float | None = None
+    width_rule: Any = None
+    regularization: Any = "auto"
+    check: bool = True
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -73,8 +89,12 @@ class TransferConfig:
             raise OptionError(f"pin {self.pin!r}: expected one of {', '.join(PINS)}")
         if self.width_cm is not None and not (math.isfinite(self.width_cm) and self.width_cm > 0):
             raise OptionError(f"width_cm must be a positive number or None; got {self.width_cm!r}")
-        if self.mode == "paper" and self.polynomial:
+        if self.mode == "paper" and self.polynomial is True:
             raise OptionError("polynomial applies to interpolate mode only")
+        if self.polynomial not in ("auto", True, False):
+            raise OptionError(f"polynomial: expected 'auto', True or False; got {self.polynomial!r}")
+        if self.width_rule is not None and self.width_rule != "legacy" and not hasattr(self.width_rule, "widths"):
+            raise OptionError(f"width_rule: expected None, 'legacy' or a WidthRule; got {self.width_rule!r}")
         if self.threshold is not None and (self.method != "hybrid" or not 0.0 <= self.threshold < 1.0):
             raise OptionError(f"threshold applies to the hybrid method and must be in [0, 1); got {self.threshold!r}")
 
@@ -86,10 +106,30 @@ class TransferConfig:
         return f"{self.method}/{self.backend}{thr}"
 
     @property
+    def uses_polynomial(self) -> bool:
+        """The polynomial term, resolved (False in paper mode)."""
+        from ..rbf.soundness import resolve_polynomial
+
+        return self.mode == "interpolate" and resolve_polynomial(self.kernel, self.polynomial)
+
+    @property
+    def width_label(self) -> str:
+        if self.width_cm is not None:
+            return f"{self.width_cm:g} cm"
+        rule = self.width_rule
+        if rule == "legacy" or (rule is None and self.mode == "paper"):
+            return "1.1h"
+        if rule is None:
+            from ..rbf.stiffness import default_width_rule
+
+            rule = default_width_rule(self.kernel, self.mode)
+        return f"{rule.factor:g}l{rule.neighbours}" if rule.per_marker else f"{rule.factor:g}h~"
+
+    @property
     def kernel_label(self) -> str:
         k = {"gaussian": "gauss", "thin_plate_spline": "TPS", "inverse_multiquadric": "IMQ"}.get(self.kernel, self.kernel)
-        w = "1.1h" if self.width_cm is None else f"{self.width_cm:g} cm"
-        return f"{k} {w}" + (" +poly" if self.polynomial else "")
+        reg = "" if self.regularization == "auto" else f" lambda={self.regularization:g}"
+        return f"{k} {self.width_label}" + (" +poly" if self.uses_polynomial else "") + reg
 
     @property
     def pin_label(self) -> str:
@@ -100,8 +140,9 @@ class TransferConfig:
         return f"{self.method_label} {self.mode} {self.kernel_label} pin={self.pin_label}"
 
     def same_except_method(self, other: "TransferConfig") -> bool:
-        return (self.mode, self.kernel, self.width_cm, self.polynomial, self.pin_label) == \
-               (other.mode, other.kernel, other.width_cm, other.polynomial, other.pin_label)
+        return (self.mode, self.kernel, self.width_cm, self.width_rule, self.uses_polynomial, self.pin_label,
+                self.regularization) == (other.mode, other.kernel, other.width_cm, other.width_rule,
+                                         other.uses_polynomial, other.pin_label, other.regularization)
 
 
 def default_configs(*, methods=METHODS, modes=MODES, pins=PINS, authors_width: bool = True,
@@ -140,8 +181,10 @@ def parse_configs(methods=None, modes=None, pins=None, widths=None, *, backend: 
     methods, modes, pins : sequence of str, optional
         Default: all of :data:`METHODS`, :data:`MODES`, :data:`PINS`.
     widths : sequence of (str or float), optional
-        ``"default"`` (the pipeline's rule: 1.1 x the Euclidean median nearest-marker distance h)
-        and/or widths in cm; default ``["default"]``.
+        ``"default"`` (the pipeline's rule of each mode: per marker, 0.7 x the mean distance to the
+        3 nearest markers in the distance's metric for interpolate; 1.1 x the Euclidean median
+        nearest-marker distance h for paper), ``"1.1h"`` (that paper rule for every mode: the
+        former default) and/or widths in cm; default ``["default"]``.
         Paper mode is run with every width; interpolate mode too.
     backend : str
         Geodesic back-end for geodesic and hybrid.
@@ -151,24 +194,26 @@ def parse_configs(methods=None, modes=None, pins=None, widths=None, *, backend: 
     methods = list(methods or METHODS)
     modes = list(modes or MODES)
     pins = list(pins or PINS)
-    ws = []
+    ws = []  # (width_cm, width_rule)
     for w in (widths or ["default"]):
-        if w is None or (isinstance(w, str) and w.lower() in ("default", "rule", "1.1h")):
-            ws.append(None)
+        if w is None or (isinstance(w, str) and w.lower() in ("default", "rule")):
+            ws.append((None, None))
+        elif isinstance(w, str) and w.lower() in ("1.1h", "legacy"):
+            ws.append((None, "legacy"))
         else:
             try:
-                ws.append(float(w))
+                ws.append((float(w), None))
             except (TypeError, ValueError):
-                raise OptionError(f"width {w!r}: expected 'default' or a width in cm") from None
+                raise OptionError(f"width {w!r}: expected 'default', '1.1h' or a width in cm") from None
     out = []
     for method in methods:
         for mode in modes:
-            for w in ws:
+            for w, rule in ws:
                 if mode == "paper":
-                    out.append(TransferConfig(method, mode, width_cm=w, pin="none", backend=backend))
+                    out.append(TransferConfig(method, mode, width_cm=w, width_rule=rule, pin="none", backend=backend))
                 else:
                     for pin in pins:
-                        out.append(TransferConfig(method, mode, width_cm=w, pin=pin, backend=backend))
+                        out.append(TransferConfig(method, mode, width_cm=w, width_rule=rule, pin=pin, backend=backend))
     if heat and "interpolate" in modes:
         out.append(TransferConfig("geodesic", "interpolate", pin=pins[0], backend="heat"))
     if thin_plate and "interpolate" in modes:

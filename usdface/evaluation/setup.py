@@ -47,6 +47,9 @@ class TransferSetup:
         Constraint vertices of each pin variant.
     seconds : dict
         Time spent on each distance kind.
+    info : dict TransferConfig -> dict
+        What :func:`usdface.rbf.build.build_transfer` reported (amplification, regularisation,
+        warnings) for each config transferred.
     """
 
     def __init__(self, mesh: FaceMesh, regions: list[Region], binding: Binding, *,
@@ -83,6 +86,8 @@ class TransferSetup:
         self._cache: dict = {}
         self._solvers: dict = {}
         self.seconds: dict = {}
+        #: what :func:`usdface.rbf.build.build_transfer` reported for each config transferred
+        self.info: dict = {}
 
     def distance_key(self, cfg: TransferConfig) -> tuple:
         if cfg.method == "euclidean":
@@ -153,25 +158,40 @@ class TransferSetup:
         return float(np.linalg.eigvalsh(0.5 * (phi + phi.T)).min())
 
     def transfer(self, cfg: TransferConfig):
-        """The fitted :class:`usdface.rbf.RBFTransfer` of ``cfg`` (runtime warnings silenced)."""
+        """The fitted :class:`usdface.rbf.RBFTransfer` of ``cfg``, built as the pipeline builds it
+        (:func:`usdface.rbf.build.build_transfer`: kernel check, polynomial, width rule, automatic
+        regularisation); runtime warnings silenced, what they said is in :attr:`info` ``[cfg]``.
+
+        Raises
+        ------
+        OptionError
+            ``cfg.check`` and a kernel with no well-posed variant on ``cfg.method``.
+        """
+        from ..rbf.build import TransferGeometry, TransferSettings, build_transfer
         from ..rbf.stiffness import DEFAULT_WIDTH_FACTOR
-        from ..rbf.transfer import RBFTransfer
 
         dv, dc = self.matrices(cfg)
-        M = self.n_markers
         cons = self.constraints(cfg)
         cols = self._columns(cfg)
-        centre_points = np.concatenate([self.marker_points, self.mesh.points[cons]])
+        if cfg.width_cm is not None:
+            stiffness, rule = cfg.width_cm * self.cm, None
+        elif cfg.width_rule == "legacy":
+            stiffness, rule = DEFAULT_WIDTH_FACTOR * self.spacing, None
+        else:
+            stiffness, rule = None, cfg.width_rule
+        settings = TransferSettings(mode=cfg.mode, kernel=cfg.kernel, stiffness=stiffness, width_rule=rule,
+                                    regularization=cfg.regularization, polynomial=cfg.polynomial, check=cfg.check)
+        geometry = TransferGeometry(
+            marker_points=self.marker_points, centre_points=np.concatenate([self.marker_points, self.mesh.points[cons]]),
+            vertex_points=self.mesh.points, marker_names=tuple(self.binding.names),
+            # as the pipeline: exact at the bound points on the mesh
+            collocation=(self.binding.triangle_vertices, self.binding.barycentrics))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            return RBFTransfer(dv[:, cols], dc[np.ix_(cols, cols)], mode=cfg.mode, kernel=cfg.kernel,
-                               widths=(DEFAULT_WIDTH_FACTOR * self.spacing if cfg.width_cm is None
-                                       else cfg.width_cm * self.cm),
-                               polynomial=cfg.polynomial, n_markers=M, centre_points=centre_points,
-                               vertex_points=self.mesh.points, marker_names=self.binding.names,
-                               # as the pipeline: exact at the bound points on the mesh
-                               collocation=(self.binding.triangle_vertices, self.binding.barycentrics)
-                               if cfg.mode == "interpolate" else None).fit()
+            solver, info = build_transfer(dv[:, cols], dc[np.ix_(cols, cols)], cfg.method, settings=settings,
+                                          geometry=geometry)
+        self.info[cfg] = info
+        return solver
 
     def predict(self, cfg: TransferConfig, displacements, *, dtype=np.float64) -> np.ndarray:
         """Vertex displacements (F, N, 3) (mesh units) for marker displacements (F, M, 3)."""

@@ -189,7 +189,9 @@ def format_report(report: QualityReport, *, shape_configs=None) -> list[str]:
         f"{report.regions.counts()['rest']}. % = of the shape's mean vertex displacement. Means are over the shapes; "
         "max = largest vertex error over all shapes.",
         f"Hybrid: radius {s['hybridRadiusCm']:g} cm, sigma {s['hybridSigmaCm']:g} cm, threshold {s['hybridThreshold']:g}. "
-        f"Kernel width 1.1h = 1.1 x median nearest-marker distance h (Euclidean, between bound points). "
+        "Kernel widths: 0.7l3 = per marker, 0.7 x its mean distance to its 3 nearest markers in the row's own "
+        "metric (the interpolate default); 1.1h = 1.1 x the median Euclidean nearest-marker distance h for every "
+        "centre (the paper-mode default, and every mode's before). "
         f"Pinned centres: border {s['pinnedCentres']['border']}, upper (above the mouth corners) "
         f"{s['pinnedCentres']['upper']}, none {s['pinnedCentres']['none']}; paper mode ignores them (zero weight).",
         "",

@@ -1,15 +1,23 @@
 """RBF transfer of marker motion onto a face mesh (seed 000, Eqs. 1-5).
 
 - :mod:`usdface.rbf.kernels`: radial kernels (gaussian = paper Eq. 3, multiquadrics, polyharmonic).
-- :mod:`usdface.rbf.stiffness`: kernel widths (default rule on marker spacing, per-marker overrides).
+- :mod:`usdface.rbf.stiffness`: kernel widths (the per-marker, metric-aware default rule; the paper's
+  rule; per-marker overrides).
+- :mod:`usdface.rbf.soundness`: which kernel works with which distance; the polynomial term the
+  conditionally positive definite kernels need.
+- :mod:`usdface.rbf.stability`: the amplification guard (auto regularisation, warnings).
 - :mod:`usdface.rbf.transfer`: :class:`RBFTransfer`, the paper mode and the interpolating solve,
   evaluated for whole sequences as one float32 matrix product, streamed in chunks of frames.
+- :mod:`usdface.rbf.build`: :func:`build_transfer`, the transfer with the pipeline's defaults and
+  checks (used by the transfer processor and the quality evaluation).
 
 Pure numpy (no scipy in the solve or the per-frame loop); no pxr.
 """
 from __future__ import annotations
 
+from .build import TransferGeometry, TransferSettings, build_transfer
 from .kernels import (
+    CPD_ORDER,
     DECAYING_KERNELS,
     KERNELS,
     canonical_kernel_name,
@@ -20,31 +28,58 @@ from .kernels import (
     multiquadric,
     thin_plate_spline,
 )
+from .soundness import SOUND_KERNELS, check_kernel_method, resolve_polynomial, sound_kernels
+from .stability import WARN_AMPLIFICATION, AmplificationWarning, amplification_warning
 from .stiffness import (
     DEFAULT_WIDTH_FACTOR,
+    GROWING_WIDTH_RULES,
+    LOCAL_WIDTH_RULE,
+    PAPER_WIDTH_RULE,
+    WidthRule,
     default_width,
+    default_width_rule,
+    local_marker_spacing,
     median_marker_spacing,
     median_marker_spacing_from_points,
     resolve_widths,
+    transfer_widths,
 )
 from .transfer import ADVICE_CONDITION, RBFTransfer, transfer_motion
 
 __all__ = [
     "ADVICE_CONDITION",
+    "AmplificationWarning",
+    "CPD_ORDER",
     "DECAYING_KERNELS",
     "DEFAULT_WIDTH_FACTOR",
+    "GROWING_WIDTH_RULES",
     "KERNELS",
+    "LOCAL_WIDTH_RULE",
+    "PAPER_WIDTH_RULE",
     "RBFTransfer",
+    "SOUND_KERNELS",
+    "TransferGeometry",
+    "TransferSettings",
+    "WARN_AMPLIFICATION",
+    "WidthRule",
+    "amplification_warning",
+    "build_transfer",
     "canonical_kernel_name",
+    "check_kernel_method",
     "cubic",
     "default_width",
+    "default_width_rule",
     "gaussian",
     "get_kernel",
     "inverse_multiquadric",
+    "local_marker_spacing",
     "median_marker_spacing",
     "median_marker_spacing_from_points",
     "multiquadric",
+    "resolve_polynomial",
     "resolve_widths",
+    "sound_kernels",
     "thin_plate_spline",
     "transfer_motion",
+    "transfer_widths",
 ]
