@@ -102,3 +102,16 @@ def test_every_accepted_kernel_stays_within_1_25x_of_the_euclidean_gaussian(face
     with pytest.raises(OptionError, match="--kernel thin_plate_spline with --method geodesic: no well-posed variant"):
         face["setup"].transfer(refused)
     face["setup"].transfer(T("geodesic", kernel="thin_plate_spline", pin="upper", check=False))  # measurable
+
+
+def test_thin_plate_rows_only_where_the_pipeline_runs_them(sample_assets):
+    from usdface.evaluation import parse_configs
+    from usdface.processors.evaluate import evaluate_shapes
+
+    rows = [c for c in parse_configs(thin_plate=True) if c.kernel == "thin_plate_spline"]
+    assert [(c.method, c.uses_polynomial) for c in rows] == [("euclidean", True)]
+    out = evaluate_shapes(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj",
+                          sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz",
+                          layout=sample_assets / "layouts" / "makehuman_hm08_face.layout.json", only=["jawOpen"],
+                          modes=["interpolate"], pins=["upper"], widths=["default"], thin_plate=True)
+    assert [c["kernel"] for c in out["configs"]] == ["gaussian"] * 3 + ["thin_plate_spline"]

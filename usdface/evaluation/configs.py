@@ -145,6 +145,13 @@ class TransferConfig:
                                          other.uses_polynomial, other.pin_label, other.regularization)
 
 
+def _thin_plate_methods(methods) -> list[str]:
+    """The methods the pipeline runs a thin-plate spline with (it refuses the others)."""
+    from ..rbf.soundness import SOUND_KERNELS
+
+    return [m for m in methods if "thin_plate_spline" in SOUND_KERNELS[m]]
+
+
 def default_configs(*, methods=METHODS, modes=MODES, pins=PINS, authors_width: bool = True,
                     heat: bool = False, thin_plate: bool = False) -> list[TransferConfig]:
     """The evaluation grid.
@@ -152,7 +159,8 @@ def default_configs(*, methods=METHODS, modes=MODES, pins=PINS, authors_width: b
     For every method: paper mode with the default width rule (and with the authors' 2 cm when
     ``authors_width``), and interpolate mode (Gaussian, default width rule) with every ``pins``
     variant. ``heat`` adds geodesic/heat interpolate (pin border); ``thin_plate`` adds thin-plate
-    spline + linear polynomial interpolate (pin border) for every method.
+    spline + linear polynomial interpolate (pin border) for every method the pipeline runs it with
+    (Euclidean: :data:`usdface.rbf.soundness.SOUND_KERNELS`).
     """
     out = []
     for method in methods:
@@ -166,7 +174,7 @@ def default_configs(*, methods=METHODS, modes=MODES, pins=PINS, authors_width: b
     if heat and "interpolate" in modes and "geodesic" in methods:
         out.append(TransferConfig("geodesic", "interpolate", pin="border", backend="heat"))
     if thin_plate and "interpolate" in modes:
-        for method in methods:
+        for method in _thin_plate_methods(methods):
             out.append(TransferConfig(method, "interpolate", kernel="thin_plate_spline", polynomial=True,
                                       pin="border"))
     return out
@@ -189,7 +197,7 @@ def parse_configs(methods=None, modes=None, pins=None, widths=None, *, backend: 
     backend : str
         Geodesic back-end for geodesic and hybrid.
     heat, thin_plate : bool
-        Extra rows, see :func:`default_configs`.
+        Extra rows, see :func:`default_configs` (thin-plate rows only where the pipeline accepts them).
     """
     methods = list(methods or METHODS)
     modes = list(modes or MODES)
@@ -217,7 +225,7 @@ def parse_configs(methods=None, modes=None, pins=None, widths=None, *, backend: 
     if heat and "interpolate" in modes:
         out.append(TransferConfig("geodesic", "interpolate", pin=pins[0], backend="heat"))
     if thin_plate and "interpolate" in modes:
-        for method in methods:
+        for method in _thin_plate_methods(methods):
             out.append(TransferConfig(method, "interpolate", kernel="thin_plate_spline", polynomial=True,
                                       pin=pins[0], backend=backend))
     return out
