@@ -45,6 +45,7 @@ def few(face):
 @pytest.fixture(scope="module")
 def report(face, few):
     configs = [T("euclidean", "interpolate", pin="border"), T("euclidean", "paper", width_cm=2.0, pin="none"),
+               T("euclidean", "interpolate", pin="border", width_rule="legacy"), T("euclidean", "paper", pin="none"),
                T("geodesic", "interpolate", width_cm=2.0, pin="upper"),
                T("hybrid", "interpolate", width_cm=2.0, pin="none"),
                T("euclidean", "interpolate", width_cm=2.0, pin="none"),
@@ -64,6 +65,18 @@ def median_spacing(points):
     d = cdist(points, points)
     np.fill_diagonal(d, np.inf)
     return float(np.median(d.min(axis=1)))
+
+
+def local_widths(points, n_centres, factor=0.7, k=3):
+    """The interpolate default, written out: each marker 0.7 x its mean distance to its 3 nearest
+    markers; every constraint centre 0.7 x the median of those."""
+    local = []
+    for j in range(len(points)):
+        d = sorted(float(np.linalg.norm(points[j] - points[i])) for i in range(len(points)) if i != j)
+        local.append(sum(d[:k]) / k)
+    out = np.full(n_centres, factor * float(np.median(local)))
+    out[: len(points)] = factor * np.array(local)
+    return out
 
 
 def independent_transfer(D_vc, D_cc, disp, *, M, mode, width, binding=None):
@@ -209,7 +222,10 @@ def test_euclidean_errors_match_an_independent_transfer(face, few, report):
     disp = np.einsum("mk,fmkd->fmd", b.barycentrics, few[1][:, b.triangle_vertices])
     masks = independent_masks(mesh, face["regions"])
     h = median_spacing(mp)
-    for cfg, width in ((T("euclidean", "interpolate", pin="border"), 1.1 * h),
+    local = local_widths(mp, len(mp) + s.constraints(T("euclidean", "interpolate", pin="border")).size)
+    for cfg, width in ((T("euclidean", "interpolate", pin="border"), local),
+                       (T("euclidean", "interpolate", pin="border", width_rule="legacy"), 1.1 * h),
+                       (T("euclidean", "paper", pin="none"), 1.1 * h),
                        (T("euclidean", "paper", width_cm=2.0, pin="none"), 2.0),
                        (T("euclidean", "interpolate", width_cm=2.0, pin="none"), 2.0)):
         cons = s.constraints(cfg)
@@ -217,7 +233,7 @@ def test_euclidean_errors_match_an_independent_transfer(face, few, report):
         pred = independent_transfer(cdist(p, centres), cdist(centres, centres), disp, M=len(mp),
                                     mode=cfg.mode, width=width, binding=b)
         res = report.result(cfg)
-        assert res.width_cm == pytest.approx(width)
+        assert res.width_cm == pytest.approx(np.median(np.broadcast_to(width, (centres.shape[0],))[: len(mp)]))
         np.testing.assert_allclose(res.predictions, pred, atol=1e-9)
         err = np.linalg.norm(pred - few[1], axis=2)
         for r in ("face", "mouth", "eyes", "rest"):
