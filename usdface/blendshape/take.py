@@ -74,13 +74,13 @@ def resolve_exclude(patterns, names) -> list[str]:
 
 
 def mesh_head_motion(capture, binding) -> np.ndarray | None:
-    """The capture's removed head motion in mesh space relative to the neutral frame (D1), or None."""
+    """The capture's removed head motion in mesh space relative to the rest pose's head pose (D1:
+    :attr:`Capture.rest_head_motion`), or None."""
     from ..skel.joints import head_motion_in_mesh_space
 
     if capture.head_motion is None:
         return None
-    n = capture.neutral_frame
-    rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.head_motion[n]), capture.head_motion)
+    rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.rest_head_motion), capture.head_motion)
     return head_motion_in_mesh_space(rel, binding.capture_to_mesh)
 
 
