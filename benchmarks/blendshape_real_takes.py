@@ -1,7 +1,9 @@
 """The three real AnimFace takes solved on the MakeHuman ARKit rig: residuals, checks, plots.
 
-Each take is read from its Maya ASCII file, stabilised, bound with the sample layout and solved
-with ``usdface solve``'s defaults (:func:`usdface.blendshape.take.solve_take`). Printed per take:
+Each take is read from its Maya ASCII file, stabilised, given its rest pose (the still stretch at
+the first frame, :func:`usdface.capture.neutral.set_rest_pose`; ``--one-frame-neutral``: the first
+frame alone and no pose refit, as usdface 0.2), bound with the sample layout and solved with
+``usdface solve``'s defaults (:func:`usdface.blendshape.take.solve_take`). Printed per take:
 the mean per-frame marker residual against a still face's (all weights 0), the largest weights,
 and the two timing checks of issue 11:
 
@@ -41,10 +43,13 @@ def main(argv=None) -> int:
     from usdface.mesh.layout import read_layout
     from usdface.preview import contact_sheet, fit_camera, render_mesh, write_png
     from usdface.preview.curves import plot_curves, stack_panels
+    from usdface.capture.neutral import set_rest_pose
     from usdface.processors.import_capture import condition_capture, load_capture
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="out/blendshape")
+    ap.add_argument("--one-frame-neutral", action="store_true",
+                    help="measure from the first frame alone and skip the pose refit (usdface 0.2)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -56,8 +61,11 @@ def main(argv=None) -> int:
     camera = None
     for take in ("Jaw", "Eyebrows", "Nose"):
         cap, _ = condition_capture(load_capture(a / f"capture/{take}MoCap.ma"), stabilize="auto")
+        if not args.one_frame_neutral:  # the conditioning's rest-pose step (until condition_capture runs it)
+            cap, rest = set_rest_pose(cap)
+            print(f"\n{take}: {rest.text()}")
         binding = bind_layout(mesh, layout, cap)
-        res = solve_take(rig, cap, binding)
+        res = solve_take(rig, cap, binding, **({"pose_refit": 0} if args.one_frame_neutral else {}))
         sol, d = res.solution, res.displacements
         w = sol.weights
         t = np.arange(w.shape[0]) / cap.rate

@@ -90,7 +90,7 @@ def load_rig(out: Path, *, tuning: bool, make_rig: bool = False):
     return BlendShapeRig(tuple(usd.names), usd.deltas, usd.mesh), LAYOUT
 
 
-def make(out: Path, *, tuning: bool = False) -> dict:
+def make(out: Path, *, tuning: bool = False, seed: int | None = None) -> dict:
     from usdface.blendshape.rig import marker_basis
     from usdface.blendshape.synthetic import layered_weight_curves, observable_shapes
     from usdface.capture.model import Capture
@@ -101,7 +101,9 @@ def make(out: Path, *, tuning: bool = False) -> dict:
 
     out.mkdir(parents=True, exist_ok=True)
     rig, layout = load_rig(out, tuning=tuning, make_rig=True)
-    seed = TUNING_SEED if tuning else SEED
+    if seed is not None and not tuning:
+        raise ValueError("the held-out rig's seed is committed: --seed is for tuning takes only")
+    seed = (TUNING_SEED if seed is None else int(seed)) if tuning else SEED
     binding = binding_from_layout(rig.mesh, read_layout(layout))
     basis = marker_basis(rig, binding)  # (M, K, 3) cm
     rest = binding.surface_points(rig.mesh.points)
@@ -138,9 +140,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", help="folder (default out/heldout_rig, or out/tuning_rig with --tuning)")
     ap.add_argument("--tuning", action="store_true", help="the same kind of take on the tuning (MakeHuman) rig")
+    ap.add_argument("--seed", type=int, help=f"another tuning take (default {TUNING_SEED}; --tuning only)")
     args = ap.parse_args(argv)
+    if args.seed is not None and not args.tuning:
+        ap.error("--seed: the held-out rig's seed is committed; --seed makes other tuning takes (--tuning)")
     out = Path(args.out) if args.out else ROOT / "out" / ("tuning_rig" if args.tuning else "heldout_rig")
-    info = make(out, tuning=args.tuning)
+    info = make(out, tuning=args.tuning, seed=args.seed)
     face = "MakeHuman face (tuning rig)" if args.tuning else "MediaPipe face (held-out rig)"
     print(f"{info['shapes']} shapes on the {face}, {info['markers']} markers, {info['frames']} frames at {RATE:g} Hz, "
           f"active shapes per frame {info['activeMin']}-{info['activeMax']} after {STILL_FRAMES} still frames, "

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError, OptionError, list_names
+from .posefit import DEFAULT_POSE_REFIT_ROUNDS, refit_pose
 from .mirror import find_mirror_pairs
 from .rig import BlendShapeRig, marker_basis
 from .solver import (DEFAULT_MAX_ITERATIONS, DEFAULT_SMOOTHING_HZ, DEFAULT_SPARSITY, DEFAULT_SYMMETRY,
@@ -38,11 +39,12 @@ class TakeSolution:
     solution: CurveSolution
     rate: float
     start_frame: int
-    head_motion: np.ndarray | None  # (F, 4, 4) mesh space, relative to the neutral frame
-    displacements: np.ndarray       # (F, M, 3) mesh units, NaN where invalid
+    head_motion: np.ndarray | None  # (F, 4, 4) mesh space, relative to the rest pose (pose refit included)
+    displacements: np.ndarray       # (F, M, 3) mesh units, NaN where invalid (as solved: pose refit applied)
     basis: np.ndarray               # (M, K, 3) mesh units
     mirror: dict
     warnings: list = field(default_factory=list)
+    pose_refit: dict | None = None  # :meth:`usdface.blendshape.posefit.PoseRefit.summary`; None: not run
 
     @property
     def weights(self) -> np.ndarray:
@@ -87,7 +89,7 @@ def mesh_head_motion(capture, binding) -> np.ndarray | None:
 def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | None = DEFAULT_SMOOTHING_HZ,
                sparsity: float = DEFAULT_SPARSITY, symmetry: float = DEFAULT_SYMMETRY, exclude=DEFAULT_EXCLUDE,
                refit: bool = True, head_motion: bool = True, max_iterations: int = DEFAULT_MAX_ITERATIONS,
-               tolerance: float = DEFAULT_TOLERANCE) -> TakeSolution:
+               tolerance: float = DEFAULT_TOLERANCE, pose_refit: int = DEFAULT_POSE_REFIT_ROUNDS) -> TakeSolution:
     """Solve a conditioned capture on a rig through a binding.
 
     Parameters
@@ -104,6 +106,10 @@ def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | No
         Shapes held at 0 (default :data:`DEFAULT_EXCLUDE`); ``()`` or ``"none"`` solves every shape.
     head_motion : bool
         Keep the capture's head motion for the outputs (D1); False drops it.
+    pose_refit : int
+        At most this many rounds of correcting the rest pose (over the quiet frames of the neutral
+        stretch) and, for a stabilised capture, the head stabilisation with the rig's pose
+        (:mod:`usdface.blendshape.posefit`); the head correction joins the head motion. 0: off.
 
     Returns
     -------
@@ -143,7 +149,14 @@ def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | No
     valid = np.isfinite(disp).all(axis=2)
     if not valid.any():
         raise InputError(f"capture {capture.source}: no valid marker sample to solve from")
-    sol = solver.solve(disp * to_cm, rate=capture.rate, max_iterations=max_iterations, tolerance=tolerance)
+    options = {"max_iterations": max_iterations, "tolerance": tolerance}
+    if isinstance(pose_refit, (bool, np.bool_)) or not isinstance(pose_refit, (int, np.integer)) or pose_refit < 0:
+        raise OptionError(f"pose refit rounds must be an integer >= 0; got {pose_refit!r}")
+    bound = binding.surface_points(rig.mesh.points) * to_cm
+    sol, solved, refit = refit_pose(solver, disp * to_cm, bound, rate=capture.rate, rounds=int(pose_refit),
+                                    tolerance=tolerance, solve_options=options, head=capture.head_motion is not None,
+                                    rest_frames=capture.neutral_frames)
+    disp = solved / to_cm
     sol.residual = sol.residual / to_cm  # back to mesh units
     sol.still_residual = sol.still_residual / to_cm
     sol.marker_rms = sol.marker_rms / to_cm
@@ -153,8 +166,13 @@ def solve_take(rig: BlendShapeRig, capture, binding, *, smoothing_hz: float | No
         warnings.append(msg)
         log.warning("%s", msg)
     hm = mesh_head_motion(capture, binding) if head_motion else None
+    if hm is not None and refit.corrections is not None:
+        # the stabilised markers sit at corrections[f] @ (rig pose): the head moved that much more
+        corr = refit.corrections.copy()
+        corr[:, :3, 3] /= to_cm
+        hm = np.einsum("fij,fjk->fik", hm, corr)
     return TakeSolution(sol, float(capture.rate), int(capture.start_frame), hm, disp, basis, mirror.summary(),
-                        warnings)
+                        warnings, refit.summary())
 
 
 def deliverable_curves(names, weights, *, rate: float, fps: float | None = None, key_tolerance: float | None = None,
