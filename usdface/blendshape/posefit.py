@@ -112,7 +112,7 @@ def rigid_corrections(model, observed, valid) -> tuple[np.ndarray, np.ndarray]:
         bad = ~np.isfinite(rot).all(axis=(1, 2))
         rot[bad] = np.eye(3)
         t[bad] = 0.0
-        r = np.linalg.norm(np.einsum("fij,fmj->fmi", rot, model) + t[:, None] - x, axis=2)
+        r = np.linalg.norm(np.matmul(model, rot.transpose(0, 2, 1)) + t[:, None] - x, axis=2)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # a frame without valid markers
             scale = np.nanmedian(np.where(valid, r, np.nan), axis=1) / _MEDIAN_CHI3  # per-coordinate sigma
@@ -169,11 +169,12 @@ def refit_pose(solver, displacements, bound_points, *, rate: float, rounds: int 
     current = d
     sol = solver.solve(current, rate=rate, **solve_options)
     change, done = 0.0, 0
+    flat_basis = solver.basis.transpose(1, 0, 2).reshape(solver.n_shapes, -1)  # (K, 3M)
     for done in range(1, int(rounds) + 1 if (head or stretch) else 1):
-        model_disp = np.einsum("fk,mkd->fmd", sol.weights, solver.basis)
+        model_disp = (sol.weights @ flat_basis).reshape(f_n, -1, 3)
         if head:
             rot, t = rigid_corrections(q[None] + offset[None] + model_disp, observed, valid)
-        local = np.einsum("fji,fmj->fmi", rot, observed - t[:, None]) - q[None]  # R^T (x - t) - q
+        local = np.matmul(observed - t[:, None], rot) - q[None]  # R^T (x - t) - q, row vectors
         if stretch is not None:
             a, b = stretch
             still = a + np.flatnonzero(sol.weights[a:b].max(axis=1) <= quiet)
