@@ -198,3 +198,22 @@ def test_displacements_and_head_motion_are_taken_from_the_rest_pose():
     cap2 = Capture(names, gap, rate, units="cm", neutral_window=(0, 20), source="t.trc")
     with pytest.raises(MarkerError, match=r"marker\(s\) m5 invalid at the neutral frames 0-19"):
         marker_displacements(cap2, names, np.eye(3))
+
+
+def test_a_range_named_before_resampling_and_stabilising_is_kept():
+    """How the conditioning runs it: the range is set on the capture first, resampling and
+    stabilisation carry it, the rest pose is then taken over it (no growing)."""
+    from usdface.capture.stabilize import stabilize
+    from usdface.capture.timing import resample
+
+    rest, clean, noisy, rate = _take(still=30, moving=60)
+    names = tuple(f"m{i}" for i in range(rest.shape[0]))
+    cap = set_neutral(Capture(names, noisy, rate, units="cm"), 5).replace(neutral_window=(2, 9))
+    cap = stabilize(resample(cap, rate=120.0))[0]
+    assert cap.neutral_frames == (4, 17)
+    out, report = set_rest_pose(cap, how="frame")
+    assert (report.how, report.start, report.end, report.threshold) == ("frame", 4, 17, None)
+    assert out.neutral_frames == (4, 17) and out.neutral_frame == cap.neutral_frame
+    # without a window: grown around the neutral frame, labelled as the caller says
+    grown = set_rest_pose(set_neutral(cap, 10), how="auto")[1]
+    assert grown.how == "auto" and grown.start == 0 and grown.end > 17 and grown.threshold is not None

@@ -5,6 +5,7 @@
 - :mod:`~usdface.blendshape.mirror` — left/right pairs that get the symmetry prior;
 - :mod:`~usdface.blendshape.solver` — :class:`CurveSolver`: the whole-take weight solve;
 - :mod:`~usdface.blendshape.take` — one capture + binding + rig -> curves and deliverables;
+- :mod:`~usdface.blendshape.posefit` — the solve corrects the head stabilisation and the rest pose;
 - :mod:`~usdface.blendshape.curves` — resampling to film rates, key reduction;
 - :mod:`~usdface.blendshape.csvio` — the curves CSV and the Live Link Face CSV;
 - :mod:`~usdface.blendshape.transfer` — a generic rig carried onto a face without one;

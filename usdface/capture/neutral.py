@@ -348,7 +348,8 @@ class RestPoseReport:
                 "there")
 
 
-def set_rest_pose(capture: Capture, neutral=None, *, warn_cm: float = NEUTRAL_MOTION_WARN_CM):
+def set_rest_pose(capture: Capture, neutral=None, *, how: str | None = None,
+                  warn_cm: float = NEUTRAL_MOTION_WARN_CM):
     """Average the rest pose over the still stretch around the neutral frame, or named frames.
 
     Parameters
@@ -357,10 +358,15 @@ def set_rest_pose(capture: Capture, neutral=None, *, warn_cm: float = NEUTRAL_MO
         Input capture (not modified); stabilise it first so that head motion is not counted as
         motion (the rest pose is taken in the positions' space either way).
     neutral : None, "auto", int, (int, int) or str
-        None: the stretch around the capture's neutral frame (the first frame unless trimmed or
-        set); ``"auto"``: around :func:`choose_neutral`'s frame; F: around frame F; ``(START,
-        END)`` or ``"START:END"``: exactly those frames (END exclusive). Parsed by
-        :func:`parse_neutral`, checked by :func:`check_neutral_frames` (OptionError, exit 2).
+        None: the capture's own neutral window when it has one of 2 frames or more (set before
+        resampling or stabilising, which carry it), else the stretch around the capture's neutral
+        frame (the first frame unless trimmed or set); ``"auto"``: around :func:`choose_neutral`'s
+        frame; F: around frame F; ``(START, END)`` or ``"START:END"``: exactly those frames (END
+        exclusive). Parsed by :func:`parse_neutral`, checked by :func:`check_neutral_frames`
+        (OptionError, exit 2).
+    how : str, optional
+        The report's and history's label for how the frame was chosen (e.g. "auto" when the caller
+        set the frame with :func:`choose_neutral` before stabilising); default from ``neutral``.
     warn_cm : float
         The report warns when the RMS motion over the frames exceeds this (cm).
 
@@ -379,18 +385,22 @@ def set_rest_pose(capture: Capture, neutral=None, *, warn_cm: float = NEUTRAL_MO
     capture.check_not_all_invalid()
     threshold = None
     noise = rest_mod.white_noise_level(capture.positions)
-    if isinstance(spec, tuple):
-        how, (a, b) = "range", spec
-        frame = (a + b - 1) // 2
+    window = capture.neutral_window
+    if spec is None and window is not None and window[1] - window[0] > 1:
+        # a range named before resampling or stabilising, carried by them
+        label, frame, (a, b) = "range", capture.neutral_frame, window
+    elif isinstance(spec, tuple):
+        label, frame, (a, b) = "range", (spec[0] + spec[1] - 1) // 2, spec
     else:
         if spec == "auto":
-            how, frame = "auto", choose_neutral(capture)[0]
+            label, frame = "auto", choose_neutral(capture)[0]
         elif spec is None:
-            how, frame = "first", capture.neutral_frame
+            label, frame = "first", capture.neutral_frame
         else:
-            how, frame = "frame", int(spec)
+            label, frame = "frame", int(spec)
         stretch = rest_mod.still_stretch(capture.positions, frame, rate=capture.rate)
         a, b, threshold = stretch.start, stretch.end, stretch.threshold
+    how = how or label
     out = capture.replace(neutral_frame=frame, neutral_window=(a, b))
     rms, top = rest_mod.residual_motion(capture.positions[a:b], out.neutral)
     to_cm = _to_cm(capture.units)
