@@ -57,7 +57,7 @@ def test_robust_average_bounds_an_outlier_sample_and_skips_invalid_ones():
 
 
 def test_white_noise_level_is_measured_and_smooth_motion_does_not_count():
-    rest, clean, noisy, rate = _take(still=200, moving=400)
+    _rest, clean, noisy, _rate = _take(still=200, moving=400)
     assert white_noise_level(noisy) == pytest.approx(NOISE, rel=0.06)
     assert white_noise_level(clean) < 0.05 * NOISE
     assert white_noise_level(noisy[:2]) == 0.0
@@ -86,7 +86,7 @@ def test_still_stretch_stops_where_the_expression_starts():
 
 
 def test_the_rest_pose_is_nearer_the_truth_than_any_one_frame():
-    rest, clean, noisy, rate = _take(still=30, moving=60, seed=4)
+    rest, _clean, noisy, rate = _take(still=30, moving=60, seed=4)
     cap = Capture(tuple(f"m{i}" for i in range(rest.shape[0])), noisy, rate, units="cm")
     out, report = set_rest_pose(cap)
     assert report.how == "first" and report.start == 0 and report.end >= 28
@@ -128,14 +128,14 @@ def test_frames_outside_the_take_are_refused_naming_the_range():
     assert str(e.value) == "--neutral 902: frame 902 is outside the take, which has frames 0-901 (0-based, after --trim)"
     check_neutral_frames((0, 902), 902)
     check_neutral_frames("auto", 3)
-    rest, clean, noisy, rate = _take()
+    rest, _clean, noisy, rate = _take()
     cap = Capture(tuple(f"m{i}" for i in range(rest.shape[0])), noisy, rate, units="cm", source="t.c3d")
     with pytest.raises(OptionError, match=r"^--neutral 95: frame 95 is outside the take of t.c3d, which has frames 0-89"):
         set_rest_pose(cap, "95")
 
 
 def test_a_named_range_where_the_face_moves_warns_with_the_motion_in_cm():
-    rest, clean, noisy, rate = _take(still=30, moving=60)
+    rest, _clean, noisy, rate = _take(still=30, moving=60)
     cap = Capture(tuple(f"m{i}" for i in range(rest.shape[0])), noisy * 10.0, rate, units="mm", source="t.c3d")
     out, report = set_rest_pose(cap, "20:80")
     assert (report.how, report.start, report.end, report.frame) == ("range", 20, 80, 49)
@@ -158,7 +158,7 @@ def test_a_named_range_where_the_face_moves_warns_with_the_motion_in_cm():
 def test_window_is_checked_and_follows_trim_resample_and_a_new_neutral_frame():
     from usdface.capture.timing import resample, trim
 
-    rest, clean, noisy, rate = _take()
+    rest, _clean, noisy, rate = _take()
     names = tuple(f"m{i}" for i in range(rest.shape[0]))
     with pytest.raises(MarkerError, match=r"neutral window \[5, 9\) must hold the neutral frame 2"):
         Capture(names, noisy, rate, neutral_frame=2, neutral_window=(5, 9))
@@ -175,11 +175,12 @@ def test_window_is_checked_and_follows_trim_resample_and_a_new_neutral_frame():
 
 
 def test_displacements_and_head_motion_are_taken_from_the_rest_pose():
-    from usdface.capture.retarget import marker_displacements, mesh_head_motion
-    from usdface.capture.rigid import to_matrix
     from scipy.spatial.transform import Rotation
 
-    rest, clean, noisy, rate = _take(seed=6)
+    from usdface.capture.retarget import marker_displacements, mesh_head_motion
+    from usdface.capture.rigid import to_matrix
+
+    rest, _clean, noisy, rate = _take(seed=6)
     names = tuple(f"m{i}" for i in range(rest.shape[0]))
     hm = np.tile(np.eye(4), (noisy.shape[0], 1, 1))
     angles = np.linspace(0, 4, noisy.shape[0])
@@ -206,7 +207,7 @@ def test_a_range_named_before_resampling_and_stabilising_is_kept():
     from usdface.capture.stabilize import stabilize
     from usdface.capture.timing import resample
 
-    rest, clean, noisy, rate = _take(still=30, moving=60)
+    rest, _clean, noisy, rate = _take(still=30, moving=60)
     names = tuple(f"m{i}" for i in range(rest.shape[0]))
     cap = set_neutral(Capture(names, noisy, rate, units="cm"), 5).replace(neutral_window=(2, 9))
     cap = stabilize(resample(cap, rate=120.0))[0]
