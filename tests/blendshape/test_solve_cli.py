@@ -245,6 +245,8 @@ def test_reduced_keys_are_the_same_curves_in_every_output(tmp_path, sample_asset
 def test_corrective_points_shot_hits_the_markers(tmp_path, sample_assets):
     from pxr import Usd, UsdGeom
 
+    from usdface.blendshape.rig import load_npz_rig
+    from usdface.blendshape.take import solve_take
     from usdface.capture.retarget import marker_displacements
     from usdface.io.meshes import read_mesh
     from usdface.mesh.binding import bind_layout
@@ -267,7 +269,11 @@ def test_corrective_points_shot_hits_the_markers(tmp_path, sample_assets):
                                Conditioning(trim=(400, 560), stabilize="auto"))
     mesh = read_mesh(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")
     binding = bind_layout(mesh, read_layout(layout), cap)
-    d = marker_displacements(cap, binding.names, binding.displacement_transform())
+    rig = load_npz_rig(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz", mesh)
+    # the displacements the solve fitted: the stabilised ones with the pose refit's corrections
+    d = solve_take(rig, cap, binding).displacements
+    raw = marker_displacements(cap, binding.names, binding.displacement_transform())
+    assert np.nanmax(np.abs(d - raw)) > 1e-3  # the refit moved them (the head motion carries the rest)
     stage = Usd.Stage.Open(str(shot))
     assert not stage.GetRootLayer().subLayerPaths and stage.GetStartTimeCode() == 0
     pts = UsdGeom.Mesh(stage.GetPrimAtPath("/Face/Geom")).GetPointsAttr()

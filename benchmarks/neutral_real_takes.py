@@ -1,0 +1,82 @@
+"""The rest pose on the three real AnimFace takes: which frames, how still, and the jitter at rest.
+
+Each take is read from its Maya ASCII file and stabilised as ``usdface solve`` does it
+(``stabilize="auto"``, relative to the take's first frame), then the rest pose is averaged over the
+still stretch around the first frame (the default) and around the automatic neutral frame
+(``--neutral auto``) by :func:`usdface.capture.neutral.set_rest_pose`. Printed per take and mode:
+
+- the frames used and the residual motion there (RMS and largest deviation of the markers from the
+  rest pose, cm) and the measured white noise;
+- the jitter of the displacement at rest: the RMS marker displacement over the stretch's frames,
+  measured from the one-frame neutral (usdface 0.2) and from the rest pose;
+- the same held out: the stretch cut into 0.1 s blocks, the rest pose averaged over the even blocks
+  and the displacement measured on the odd ones (the one-frame neutral taken from an even block
+  too), so the rest pose is not judged on the frames it was averaged over.
+
+The figures go through the compute functions the conditioning calls; re-measure them through the
+commands once ``--neutral`` is wired (the capture layer records the frames and the motion).
+
+    python benchmarks/neutral_real_takes.py
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+TAKES = ("Jaw", "Eyebrows", "Nose")
+BLOCK_SECONDS = 0.1
+
+
+def jitter(positions, reference) -> float:
+    """RMS over the valid samples of ``|p_f - reference|`` (cm)."""
+    d2 = ((positions - reference[None]) ** 2).sum(axis=2)
+    return float(np.sqrt(np.nanmean(d2)))
+
+
+def held_out(positions, seed_in_block: int, rate: float) -> tuple[float, float]:
+    """(one frame, rest pose) jitter on the odd 0.1 s blocks, both references from the even blocks."""
+    from usdface.capture.rest import robust_rest_pose
+
+    n = positions.shape[0]
+    block = max(1, int(round(BLOCK_SECONDS * rate)))
+    even = (np.arange(n) // block) % 2 == 0
+    if even.all():
+        return float("nan"), float("nan")
+    one = positions[min(seed_in_block, n - 1)] if even[min(seed_in_block, n - 1)] else positions[0]
+    rest = robust_rest_pose(positions[even])[0]
+    return jitter(positions[~even], one), jitter(positions[~even], rest)
+
+
+def main(argv=None) -> int:
+    from usdface.capture.neutral import NEUTRAL_MOTION_WARN_CM, set_rest_pose
+    from usdface.processors.import_capture import condition_capture, load_capture
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.parse_args(argv)
+    print(f"warning threshold: {NEUTRAL_MOTION_WARN_CM:g} cm RMS over the stretch\n")
+    print("| take | neutral | frames used | s | motion RMS / max (cm) | noise (cm) | jitter at rest, one frame -> "
+          "rest pose (cm) | held out: one frame -> rest pose (cm) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for take in TAKES:
+        cap, _ = condition_capture(load_capture(ROOT / "sample_assets" / "capture" / f"{take}MoCap.ma"),
+                                   stabilize="auto")
+        for mode in (None, "auto"):
+            out, rep = set_rest_pose(cap, mode)
+            a, b = out.neutral_frames
+            p = cap.positions[a:b]
+            one = jitter(p, cap.positions[rep.frame])
+            robust = jitter(p, out.neutral)
+            h_one, h_rest = held_out(p, rep.frame - a, cap.rate)
+            flag = " (warned)" if rep.warnings else ""
+            print(f"| {take} | {'first frame' if mode is None else 'auto'} (frame {rep.frame}) | {a}-{b - 1} | "
+                  f"{(b - a) / cap.rate:.2f} | {rep.motion_rms * rep.to_cm:.3f} / {rep.motion_max * rep.to_cm:.3f}{flag} "
+                  f"| {rep.noise * rep.to_cm:.5f} | {one:.3f} -> {robust:.3f} ({100 * (1 - robust / one):.0f}% less) | "
+                  f"{h_one:.3f} -> {h_rest:.3f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
