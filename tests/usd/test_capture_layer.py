@@ -103,7 +103,7 @@ def test_the_neutral_stretch_and_rest_pose_round_trip(tmp_path):
     assert info["neutralTimes"] == [10, 10 + report.end - 1]
     assert info["neutralMotionRmsCm"] == pytest.approx(report.motion_rms, abs=1e-5)
     text = "\n".join(format_description(describe(out)))
-    assert (f"neutral times 10-{10 + report.end - 1} (frame 10 named), markers move {report.motion_rms:.3f} cm RMS "
+    assert (f"neutral times 10-{10 + report.end - 1} (around neutral frame 10), markers move {report.motion_rms:.3f} cm RMS "
             f"({report.motion_max:.3f} cm at most) there") in text
 
 

@@ -71,7 +71,7 @@ def resolve_exclude(patterns, names) -> list[str]:
 
 
 def mesh_head_motion(capture, binding) -> np.ndarray | None:
-    """The capture's removed head motion in mesh space relative to the rest pose's head pose (D1), or None
+    """The capture's removed head motion in mesh space relative to the neutral frame (D1), or None
     (:func:`usdface.skel.joints.capture_head_motion`: the skeleton carries the same one)."""
     from ..skel.joints import capture_head_motion
 

@@ -340,12 +340,15 @@ class RestPoseReport:
                 "thresholdCm": None if self.threshold is None else round(self.threshold * self.to_cm, 5),
                 "warnings": list(self.warnings)}
 
-    def text(self) -> str:
-        """One line for the command's output."""
+    def text(self, warn_cm: float = NEUTRAL_MOTION_WARN_CM) -> str:
+        """One line for the command's output: the frames, why those, and the motion there."""
         frames = f"frame {self.start}" if self.n_frames == 1 else f"frames {self.start}-{self.end - 1}"
-        return (f"neutral: {frames} ({self.n_frames} frame{'s' if self.n_frames != 1 else ''}, {self.how}); "
-                f"markers move {self.motion_rms * self.to_cm:.3f} cm RMS, {self.motion_max * self.to_cm:.3f} cm at most "
-                "there")
+        why = {"first": f"the still stretch around the first frame, {self.frame}",
+               "frame": f"the still stretch around frame {self.frame}",
+               "auto": f"the still stretch around frame {self.frame}, chosen automatically",
+               "range": "the frames --neutral names"}.get(self.how, self.how)
+        return (f"rest pose: {frames} ({why}); markers move {self.motion_rms * self.to_cm:.3f} cm RMS there, "
+                f"{self.motion_max * self.to_cm:.3f} cm at most (warning above {warn_cm:g} cm RMS)")
 
 
 def set_rest_pose(capture: Capture, neutral=None, *, how: str | None = None,

@@ -53,12 +53,14 @@ def marker_displacements(capture: Capture, names, transform: np.ndarray) -> np.n
 def mesh_head_motion(capture: Capture, capture_to_mesh: np.ndarray) -> np.ndarray | None:
     """The head motion removed by stabilisation, as rigid motions of the face in mesh space.
 
-    ``H_mesh(f) = C H(n)^-1 H(f) C^-1`` with H the capture's head motion (capture space), H(n)
-    the rest pose's head pose (:attr:`Capture.rest_head_motion`: the neutral frame's, or the
-    average over the neutral window) and C the binding's capture-to-mesh similarity: the actor's head rotation about
+    ``H_mesh(f) = C H(n)^-1 H(f) C^-1`` with H the capture's head motion (capture space), n the
+    neutral frame and C the binding's capture-to-mesh similarity: the actor's head rotation about
     the (mapped) head, the translation scaled like the face, identity at the neutral frame (where
     the face is at its rest pose). The similarity's scale cancels in the rotation, so H_mesh is
-    rigid.
+    rigid. H(n), not the head pose averaged over the neutral stretch: the conditioning stabilises
+    on the neutral frame (H(n) = I) or on the rest pose of named frames, so the positions are
+    head-local in that pose; the binding maps them to the mesh and the shot places the markers with
+    C alone, and any other reference would move the face off its markers.
 
     Returns
     -------
@@ -67,7 +69,7 @@ def mesh_head_motion(capture: Capture, capture_to_mesh: np.ndarray) -> np.ndarra
     if capture.head_motion is None:
         return None
     h = np.asarray(capture.head_motion, dtype=np.float64)
-    rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.rest_head_motion), h)
+    rel = np.einsum("ij,fjk->fik", np.linalg.inv(h[capture.neutral_frame]), h)
     c = np.asarray(capture_to_mesh, dtype=np.float64)
     out = np.einsum("ij,fjk,kl->fil", c, rel, np.linalg.inv(c))
     out[:, 3] = (0.0, 0.0, 0.0, 1.0)  # exact affine rows (no rounding into the projective part)

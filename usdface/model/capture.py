@@ -144,29 +144,6 @@ class Capture:
         rest.flags.writeable = False
         return rest
 
-    @cached_property
-    def rest_head_motion(self) -> np.ndarray | None:
-        """(4, 4) head pose of the rest pose (None when not stabilised), read-only.
-
-        The head motion at the neutral frame, or over a window its average (rotation: the
-        chordal L2 mean, scipy's ``Rotation.mean``; translation: the mean), so the rest pose
-        and its head pose come from the same frames.
-        """
-        if self.head_motion is None:
-            return None
-        a, b = self.neutral_frames
-        if b - a == 1:
-            out = self.head_motion[a].copy()
-        else:
-            from scipy.spatial.transform import Rotation
-
-            h = self.head_motion[a:b]
-            out = np.eye(4)
-            out[:3, :3] = Rotation.from_matrix(h[:, :3, :3]).mean().as_matrix()
-            out[:3, 3] = h[:, :3, 3].mean(axis=0)
-        out.flags.writeable = False
-        return out
-
     def describe_neutral(self) -> str:
         """'neutral frame 12' or 'neutral frames 0-17' (inclusive), for messages."""
         a, b = self.neutral_frames

@@ -51,7 +51,9 @@ def robust_rest_pose(positions, *, iterations: int = 8) -> tuple[np.ndarray, np.
             w = np.where(r > limit[None], limit[None] / np.maximum(r, 1e-300), 1.0) * ok
             w = np.where(scale[None] > 0, w, ok.astype(np.float64))
             total = w.sum(axis=0)
-            new = (w[:, :, None] * filled).sum(axis=0) / np.where(total > 0, total, 1.0)[:, None]
+            # the weighted mean as a correction of the estimate: exact when every sample agrees
+            step = (w[:, :, None] * (filled - rest[None])).sum(axis=0) / np.where(total > 0, total, 1.0)[:, None]
+            new = rest + step
             rest = np.where((total > 0)[:, None], new, np.nan)
     return rest, count.astype(np.int64)
 

@@ -86,15 +86,15 @@ def head_motion_in_mesh_space(head_motion: np.ndarray, capture_to_mesh: np.ndarr
 
 
 def capture_head_motion(capture, capture_to_mesh: np.ndarray) -> np.ndarray | None:
-    """The head motion a stabilised capture removed, in mesh space and relative to the head pose of
-    its rest pose: ``H_mesh(f) = C H_rest^-1 H(f) C^-1`` (decision D1; ``H_rest`` is
-    :attr:`~usdface.model.capture.Capture.rest_head_motion`: the neutral frame's head pose, or its
-    mean over the neutral stretch), as the skeleton and the blend-shape curves carry it on /Face.
+    """The head motion a stabilised capture removed, in mesh space and relative to its neutral
+    frame: ``H_mesh(f) = C H(n)^-1 H(f) C^-1`` (decision D1; identity on the neutral frame n, whose
+    head pose the conditioning stabilises on; see :func:`usdface.capture.retarget.mesh_head_motion`),
+    as the skeleton and the blend-shape curves carry it on /Face.
 
     Parameters
     ----------
     capture : usdface.model.capture.Capture
-        Its ``head_motion`` (F, 4, 4) (capture space, column vectors) or None, and its rest pose.
+        Its ``head_motion`` (F, 4, 4) (capture space, column vectors) or None, and ``neutral_frame``.
     capture_to_mesh : ndarray, shape (4, 4)
         The binding's capture-to-mesh similarity C.
 
@@ -104,7 +104,8 @@ def capture_head_motion(capture, capture_to_mesh: np.ndarray) -> np.ndarray | No
     """
     if capture.head_motion is None:
         return None
-    rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.rest_head_motion), capture.head_motion)
+    n = capture.neutral_frame
+    rel = np.einsum("ij,fjk->fik", np.linalg.inv(capture.head_motion[n]), capture.head_motion)
     return head_motion_in_mesh_space(rel, capture_to_mesh)
 
 

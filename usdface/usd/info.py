@@ -115,7 +115,7 @@ def _neutral_stretch(prim, stage) -> dict:
 
 def _format_neutral(m: dict) -> str:
     a, b = m["neutralTimes"]
-    frames = f"neutral time {a:g}" if a == b else f"neutral times {a:g}-{b:g} (frame {m['neutralTime']:g} named)"
+    frames = f"neutral time {a:g}" if a == b else f"neutral times {a:g}-{b:g} (around neutral frame {m['neutralTime']:g})"
     if m.get("neutralMotionRmsCm") is None:
         return frames + ("" if a == b else ", motion there unknown")
     return (f"{frames}, markers move {m['neutralMotionRmsCm']:.3f} cm RMS ({m['neutralMotionMaxCm']:.3f} cm at most) "
