@@ -318,3 +318,35 @@ def test_solve_in_memory_writes_no_file(tmp_path, sample_assets, monkeypatch):
     assert curves["weights"].shape == (120, 52) and curves["rate"] == 60.0
     assert np.array_equal(read_curves_layer(into)["weights"], curves["weights"])
     assert result.summary["output"].startswith("in-memory layer") and result.summary["residualMean"] > 0
+
+
+def test_pose_refit_is_on_by_default_recorded_and_printed(jaw, sample_assets, rig_args, tmp_path, capsys):
+    """Issue 19: the solve refits the head stabilisation and the rest pose (4 rounds at most by
+    default), says so, and records the rounds in the layer's provenance; --pose-refit 0 is the
+    solve of usdface 0.2 (nothing refitted)."""
+    from usdface.usd.layers import layer_provenance
+
+    def read_provenance(path):
+        return {**layer_provenance(path), "options": json.loads(layer_provenance(path)["options"])}
+
+    out, summary = jaw
+    refit = summary["poseRefit"]
+    assert 1 <= refit["rounds"] <= 4 and refit["headAngleDegMax"] > 0
+    assert read_provenance(out / "jaw.usdc")["options"]["pose_refit"] == 4
+    assert cli("solve", *rig_args, "--capture", sample_assets / "capture" / "JawMoCap.ma", "--trim", "0", "300",
+               "--pose-refit", "0", "-o", tmp_path / "off.usdc") == 0
+    text = capsys.readouterr().out.splitlines()
+    assert text[2].startswith("  rest pose: frames 0-") and not any("pose refit" in line for line in text)
+    assert read_provenance(tmp_path / "off.usdc")["options"]["pose_refit"] == 0
+    assert cli("solve", *rig_args, "--capture", sample_assets / "capture" / "JawMoCap.ma", "--trim", "0", "300",
+               "-o", tmp_path / "on.usdc") == 0
+    text = capsys.readouterr().out.splitlines()
+    assert text[3].startswith("  pose refit: ") and "round(s); rest pose corrected by " in text[3]
+
+
+@pytest.mark.parametrize("value", ["-1", "1.5", "many"])
+def test_pose_refit_takes_a_whole_number(value, sample_assets, rig_args, tmp_path, capsys):
+    assert cli("solve", *rig_args, "--capture", sample_assets / "capture" / "JawMoCap.ma", f"--pose-refit={value}",
+               "-o", tmp_path / "c.usdc") == 2
+    assert capsys.readouterr().err.splitlines() == [f"usdface solve: error: --pose-refit {value}: expected a whole "
+                                                    "number >= 0"]

@@ -103,14 +103,15 @@ class TakeParameters:
         if isinstance(rounds, bool) or not isinstance(rounds, int) or rounds < 0:
             from ..errors import OptionError
 
-            raise OptionError(f"--pose-refit {rounds!r}: expected an integer >= 0")
+            raise OptionError(f"--pose-refit {rounds!r}: expected a whole number >= 0")
 
     def record(self) -> dict:
-        """The solver's settings as usdface 0.2 recorded them in provenance (JSON types)."""
+        """The solver's settings as provenance records them (JSON types): usdface 0.2's keys and
+        ``pose_refit`` (0.2 had no refit: a layer without the key was solved with 0 rounds)."""
         s = self.solver
         return {"smoothing_hz": s.smoothing_hz, "sparsity": s.sparsity, "symmetry": s.symmetry,
                 "exclude": list(self.exclude), "refit": s.refit, "max_iterations": s.max_iterations,
-                "tolerance": s.tolerance}
+                "tolerance": s.tolerance, "pose_refit": self.pose_refit}
 
 
 @dataclass(frozen=True)
