@@ -126,12 +126,12 @@ def _partner(name):
 
 def carried_rig(face, workdir):
     """The default generic rig carried onto ``face`` by `usdface shapes transfer` (names, deltas (K, N, 3))."""
-    from usdface.processors.shapes import transfer_shapes
-    from usdface.processors.solve import load_rig
+    from usdface import api
+    from usdface.usd.rig_inputs import load_rig
 
     mesh_file, layout_file = FACES[face]
     out = Path(workdir) / f"{face}_rig.usdc"
-    transfer_shapes(ASSETS / "meshes" / mesh_file, out, landmarks=ASSETS / "layouts" / layout_file)
+    api.shapes_transfer(str(ASSETS / "meshes" / mesh_file), str(ASSETS / "layouts" / layout_file), output=str(out))
     rig, _ = load_rig(out)
     return list(rig.names), rig.deltas.astype(np.float64)
 
@@ -203,11 +203,11 @@ def alternatives_section(b, Bench) -> dict:
           "*; chosen on the tuning column.\n")
     rows = []
     for label, cfg in (
-            ("today: hybrid/graph, 1.1 x Euclidean h", T("hybrid", pin=PIN, width_rule="legacy")),
+            ("usdface 0.2: hybrid/graph, 1.1 x Euclidean h", T("hybrid", pin=PIN, backend="graph", width_rule="legacy")),
             ("hybrid/fmm, 1.1 x Euclidean h", T("hybrid", pin=PIN, backend="fmm", width_rule="legacy")),
             ("hybrid/fmm, global metric-aware width 0.8 x median spacing",
              T("hybrid", pin=PIN, backend="fmm", width_rule=WidthRule(0.8, 1, False, "median"))),
-            ("hybrid/graph, per-marker widths (default rule)", T("hybrid", pin=PIN)),
+            ("hybrid/graph, per-marker widths (default rule)", T("hybrid", pin=PIN, backend="graph")),
             ("* hybrid/fmm, per-marker widths (default rule)", T("hybrid", pin=PIN, backend="fmm")),
             ("geodesic/fmm, per-marker widths", T("geodesic", pin=PIN, backend="fmm")),
             ("euclidean, per-marker widths", T("euclidean", pin=PIN)),

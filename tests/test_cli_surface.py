@@ -23,6 +23,10 @@ CHANGED: dict = {
     **{(command, "--polynomial"): "issue 19: default 'auto' (a store_const True) instead of False: thin-plate "
                                   "splines need the polynomial, the multiquadric gets it"
        for command in ("run", "skel", "transfer")},
+    ("distances", "--backend"): "issue 19: fast marching is the default geodesic back-end (held out it transfers at "
+                                "least as well as edge paths at the default width)",
+    ("run", "--backend"): "issue 19: default None = the RBF mode's: fmm, graph (the paper's edge paths) with --rbf paper",
+    ("evaluate", "--backend"): "issue 19: fmm offered; default None = the pipeline's back-end for each row's mode",
 }
 
 

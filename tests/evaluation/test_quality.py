@@ -13,13 +13,21 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial.distance import cdist
 
 from usdface.errors import InputError, OptionError
-from usdface.evaluation.quality import (REGION_NAMES, TransferConfig as T, TransferSetup, claim_numbers, evaluate,
+from usdface.evaluation.quality import (REGION_NAMES, TransferConfig, TransferSetup, claim_numbers, evaluate,
                                         format_report, loop_rims, marker_displacements, parse_configs,
                                         select_shapes, shape_errors, summary_rows)
 from usdface.io.meshes import read_mesh
 from usdface.mesh.layout import read_layout
 from usdface.mesh.topology import find_hole_regions
 from usdface.mesh.layout_binding import binding_from_layout
+
+
+def T(*args, **kwargs) -> TransferConfig:
+    """A config on edge-path geodesics (what the independent transfer below recomputes) unless it
+    names its back-end."""
+    kwargs.setdefault("backend", "graph")
+    return TransferConfig(*args, **kwargs)
+
 
 SHAPES = ("jawOpen", "eyeBlinkLeft", "mouthSmileLeft", "browInnerUp")
 

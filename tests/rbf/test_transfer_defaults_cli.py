@@ -140,3 +140,22 @@ def test_an_amplification_that_slips_through_is_a_warning_naming_it(layers, tmp_
     assert warnings == [f"the gaussian transfer on geodesic distances amplifies marker motion {amp:.1f}x at some "
                         "vertices (a sound transfer stays under 6x): expect errors well above the markers' motion "
                         "there; try a smaller --stiffness or --method euclidean"]
+
+
+def test_fast_marching_is_the_default_geodesic_and_paper_mode_keeps_edge_paths(layers, sample_assets, tmp_path,
+                                                                            cli):
+    """Held out, fmm at the default width transfers at least as well as edge paths (README), so it is
+    the default; --rbf paper keeps the paper's edge paths unless --backend says otherwise."""
+    from usdface.options import DistanceOptions, RunOptions
+    from usdface.usd.analysis_layer import read_distance_matrix
+
+    assert read_distance_matrix(layers["hybrid"], method="hybrid").backend == "fmm"
+    assert DistanceOptions().backend == "fmm"
+    assert (RunOptions().backend, RunOptions(rbf="paper").backend, RunOptions(rbf="paper", backend="fmm").backend,
+            RunOptions(backend="graph").backend) == ("fmm", "graph", "fmm", "graph")
+    out = tmp_path / "paper"
+    assert cli("run", "--mesh", sample_assets / "meshes" / MESH, "--capture", sample_assets / "capture" / "JawMoCap.ma",
+               "--layout", sample_assets / "layouts" / LAYOUT, "--trim", "0", "30", "--rbf", "paper", "-o", out,
+               "-q") == 0
+    assert json.loads((out / "summary.json").read_text())["backend"] == "graph"
+    assert read_distance_matrix(out / "analysis.usdc").backend == "graph"

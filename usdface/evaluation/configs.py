@@ -52,8 +52,9 @@ class TransferConfig:
     pin : {"border", "none", "upper"}
         Which outer-border vertices are zero-displacement centres (no effect in paper mode, where
         constraint centres get zero weight).
-    backend : {"graph", "fmm", "heat", "exact"}
-        Geodesic back-end (geodesic and hybrid).
+    backend : {"graph", "fmm", "heat", "exact"} or None
+        Geodesic back-end (geodesic and hybrid); None: the pipeline's for the mode
+        (:func:`usdface.distance.methods.default_backend`: fast marching, edge paths in paper mode).
     threshold : float, optional
         Hybrid threshold (default the setup's).
     width_rule : None, "legacy" or WidthRule
@@ -74,13 +75,17 @@ class TransferConfig:
     width_cm: float | None = None
     polynomial: Any = "auto"
     pin: str = "border"
-    backend: str = "graph"
+    backend: str | None = None
     threshold: float | None = None
     width_rule: Any = None
     regularization: Any = "auto"
     check: bool = True
 
     def __post_init__(self) -> None:
+        if self.backend is None:
+            from ..distance.methods import default_backend
+
+            object.__setattr__(self, "backend", default_backend(self.mode))
         if self.method not in METHODS:
             raise OptionError(f"method {self.method!r}: expected one of {', '.join(METHODS)}")
         if self.mode not in MODES:
@@ -180,7 +185,7 @@ def default_configs(*, methods=METHODS, modes=MODES, pins=PINS, authors_width: b
     return out
 
 
-def parse_configs(methods=None, modes=None, pins=None, widths=None, *, backend: str = "graph",
+def parse_configs(methods=None, modes=None, pins=None, widths=None, *, backend: str | None = None,
                   heat: bool = False, thin_plate: bool = False) -> list[TransferConfig]:
     """Configurations from CLI-style lists.
 
@@ -194,8 +199,8 @@ def parse_configs(methods=None, modes=None, pins=None, widths=None, *, backend: 
         nearest-marker distance h for paper), ``"1.1h"`` (that paper rule for every mode: the
         former default) and/or widths in cm; default ``["default"]``.
         Paper mode is run with every width; interpolate mode too.
-    backend : str
-        Geodesic back-end for geodesic and hybrid.
+    backend : str, optional
+        Geodesic back-end for geodesic and hybrid; None: the pipeline's for each mode.
     heat, thin_plate : bool
         Extra rows, see :func:`default_configs` (thin-plate rows only where the pipeline accepts them).
     """
