@@ -339,6 +339,26 @@ def test_summary_rows_and_report(report):
     assert sub.results[0].mean_error.shape == (1, len(REGION_NAMES))
 
 
+def test_report_gives_the_whole_set_figures(report):
+    """The JSON and the markdown carry issue 19's mesh error and jaw-drop mouth error per row,
+    from plain sums over the per-shape face errors."""
+    face = REGION_NAMES.index("face")
+    d = {c["label"]: c for c in report.to_dict()["configs"]}
+    text = "\n".join(format_report(report))
+    assert "### Whole-set figures" in text
+    for res in report.results:
+        true = report.truth_mean
+        moving = true > 0.05
+        expect = 100 * res.mean_error[moving, face].sum() / true[moving].sum()
+        jaw = res.mean_error[report.shape("jawOpen"), REGION_NAMES.index("mouth")]
+        got = d[res.config.label]
+        assert got["meshErrorPct"] == pytest.approx(expect, abs=1e-4)
+        assert got["meshErrorAllShapesPct"] == pytest.approx(100 * res.mean_error[:, face].sum() / true.sum(), abs=1e-4)
+        assert got["jawDropMouthErrorCm"] == pytest.approx(jaw, abs=1e-4)
+        c = res.config
+        assert f"| {c.method_label} | {c.mode} | {c.kernel_label} | {c.pin_label} | {expect:.1f}% |" in text
+
+
 def test_units_do_not_change_the_errors(face, few):
     """The same face in mm gives the same errors (reported in cm)."""
     import dataclasses

@@ -141,6 +141,7 @@ class QualityReport:
 
     def to_dict(self) -> dict:
         """JSON-ready summary (per config: per-shape numbers and aggregates)."""
+        from .metrics import jaw_drop_mouth_error, mesh_error
         from .tables import claim_numbers, summary_rows
 
         out = {"settings": self.settings, "shapes": list(self.shape_names), "skipped": dict(self.skipped),
@@ -157,6 +158,9 @@ class QualityReport:
                 "meanErrorCm": {rn: _r(res.mean_error[:, i]) for i, rn in enumerate(REGION_NAMES)},
                 "maxErrorCm": {rn: _r(res.max_error[:, i]) for i, rn in enumerate(REGION_NAMES)},
                 "predictedMaxCm": _r(res.predicted_max), "stillMotionCm": _r(res.still_motion),
+                "meshErrorPct": _r([mesh_error(self, res)], 4)[0],
+                "meshErrorAllShapesPct": _r([mesh_error(self, res, min_mean_cm=0.0)], 4)[0],
+                "jawDropMouthErrorCm": _r([jaw_drop_mouth_error(self, res)])[0],
             })
         return out
 

@@ -176,6 +176,23 @@ def format_overshoot_table(report: QualityReport, shape: str = "jawOpen") -> lis
     return lines
 
 
+def format_figures_table(report: QualityReport) -> list[str]:
+    """Markdown: issue 19's whole-set figures per configuration (:mod:`usdface.evaluation.metrics`)."""
+    from .metrics import JAW_DROP_SHAPE, MESH_ERROR_MIN_MEAN_CM, jaw_drop_mouth_error, mesh_error
+
+    moving = int((report.truth_mean > MESH_ERROR_MIN_MEAN_CM).sum())
+    head = ["distance", "mode", "kernel, width", "pinned", f"mesh error ({moving} shapes moving > "
+            f"{10 * MESH_ERROR_MIN_MEAN_CM:g} mm)", f"mesh error (all {len(report.shape_names)} shapes)",
+            f"jaw-drop mouth error cm ({JAW_DROP_SHAPE})"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * len(head)) + "|"]
+    for res in report.results:
+        c = res.config
+        cells = [c.method_label, c.mode, c.kernel_label, c.pin_label, _f(mesh_error(report, res), 1) + "%",
+                 _f(mesh_error(report, res, min_mean_cm=0.0), 1) + "%", _f(jaw_drop_mouth_error(report, res))]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
 def format_report(report: QualityReport, *, shape_configs=None) -> list[str]:
     """The full markdown report: settings, summary table, claim table, overshoot, per-shape table."""
     s = report.settings
@@ -202,6 +219,10 @@ def format_report(report: QualityReport, *, shape_configs=None) -> list[str]:
         "### The paper's claim: jawOpen upper lip, eyeBlink lower lid",
         "",
         *format_claim_table(report),
+        "",
+        "### Whole-set figures (issue 19: sum of mean vertex errors / sum of mean true displacements)",
+        "",
+        *format_figures_table(report),
     ]
     ov = format_overshoot_table(report)
     if ov:
