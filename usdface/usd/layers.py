@@ -148,10 +148,13 @@ def stage_units(stage: Usd.Stage) -> str | None:
 
 
 def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.PathLike | None]) -> dict:
-    """Provenance for customLayerData: usdface version, processor, options, input names and hashes.
+    """Provenance for customLayerData: usdface version, processor, the algorithms' revision
+    (:mod:`usdface.revisions`: recorded above 1), options, input names and hashes.
 
     No timestamps, host names or absolute paths, so the same inputs give byte-identical layers.
     """
+    from ..revisions import provenance_revision
+
     recorded = {}
     for role, path in inputs.items():
         if path is None:
@@ -164,6 +167,7 @@ def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.Path
     return {
         "usdfaceVersion": __version__,
         "processor": processor,
+        **provenance_revision(processor),
         "options": json.dumps(options, sort_keys=True, default=str),
         "inputs": json.dumps(recorded, sort_keys=True),
     }
