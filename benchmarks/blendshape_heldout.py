@@ -37,16 +37,34 @@ def load(out: Path, *, tuning: bool = False):
 
 
 def conditioned(take: Path, neutral: str):
-    """The take conditioned like ``usdface solve``; ``neutral``: "frame" or "robust"."""
-    from usdface.processors.import_capture import condition_capture, load_capture
+    """The take conditioned like ``usdface solve`` (its default options); ``neutral``: "frame" (the
+    first frame alone, ``--neutral 0:1``: usdface 0.2) or "robust" (the default rest pose)."""
+    from dataclasses import replace
 
-    cap, reports = condition_capture(load_capture(take), stabilize="auto")
-    if neutral == "robust":
-        from usdface.capture.neutral import set_rest_pose
+    from usdface.capture.conditioning import condition_capture
+    from usdface.options import SolveOptions
+    from usdface.usd.inputs import load_capture
 
-        cap, report = set_rest_pose(cap)
-        reports["restPose"] = report.summary()
+    steps = SolveOptions().conditioning()
+    if neutral == "frame":
+        steps = replace(steps, neutral=(0, 1))
+    cap, reports = condition_capture(load_capture(take), steps)
+    if neutral == "frame":
+        reports.pop("restPose", None)
     return cap, reports
+
+
+def take_parameters(options: dict):
+    """``usdface solve``'s defaults (:meth:`usdface.options.SolveOptions.take_parameters`) with the
+    overrides ``options`` (solver fields, and ``pose_refit``)."""
+    from dataclasses import replace
+
+    from usdface.options import SolveOptions
+
+    params = SolveOptions().take_parameters()
+    solver = {k: v for k, v in options.items() if k != "pose_refit"}
+    return replace(params, solver=replace(params.solver, **solver),
+                   pose_refit=options.get("pose_refit", params.pose_refit))
 
 
 def solve_variant(rig, layout, take, truth, neutral: str, options: dict) -> dict:
@@ -56,7 +74,7 @@ def solve_variant(rig, layout, take, truth, neutral: str, options: dict) -> dict
     cap, reports = conditioned(take, neutral)
     binding, _, _ = bind_and_judge(rig.mesh, cap, layout=layout)
     t0 = time.perf_counter()
-    res = solve_take(rig, cap, binding, **options)
+    res = solve_take(rig, cap, binding, take_parameters(options))
     seconds = time.perf_counter() - t0
     w = res.weights
     return {"weightRMS": weight_rms(truth["weights"], w),
@@ -71,7 +89,7 @@ def references(rig, layout, truth, take) -> dict:
     from usdface.blendshape.synthetic import observable_shapes
     from usdface.mesh.layout import read_layout
     from usdface.mesh.layout_binding import binding_from_layout
-    from usdface.processors.import_capture import load_capture
+    from usdface.usd.inputs import load_capture
 
     cap = load_capture(take)
     binding = binding_from_layout(rig.mesh, read_layout(layout))

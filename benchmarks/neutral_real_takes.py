@@ -52,7 +52,8 @@ def held_out(positions, seed_in_block: int, rate: float) -> tuple[float, float]:
 
 def main(argv=None) -> int:
     from usdface.capture.neutral import NEUTRAL_MOTION_WARN_CM, set_rest_pose
-    from usdface.processors.import_capture import condition_capture, load_capture
+    from usdface.capture.conditioning import Conditioning, condition_capture
+    from usdface.usd.inputs import load_capture
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.parse_args(argv)
@@ -62,7 +63,7 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|---|")
     for take in TAKES:
         cap, _ = condition_capture(load_capture(ROOT / "sample_assets" / "capture" / f"{take}MoCap.ma"),
-                                   stabilize="auto")
+                                   Conditioning(stabilize="auto"))
         for mode in (None, "auto"):
             out, rep = set_rest_pose(cap, mode)
             a, b = out.neutral_frames
