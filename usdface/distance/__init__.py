@@ -19,7 +19,8 @@ from ..lazy import lazy_exports
 _EXPORTS = {
     "DistanceWarning": "euclidean", "available_memory": "euclidean", "check_matrix_memory": "euclidean",
     "euclidean_at_sources": "euclidean", "euclidean_distances": "euclidean", "pairwise_euclidean": "euclidean",
-    "source_points": "euclidean",     "BACKENDS": "methods", "DEFAULT_BACKEND": "methods", "PAPER_BACKEND": "methods", "default_backend": "methods", "GEODESIC_ROLES": "methods", "METHODS": "methods",
+    "source_points": "euclidean", "BACKENDS": "methods", "DEFAULT_BACKEND": "methods", "PAPER_BACKEND": "methods",
+    "default_backend": "methods", "GEODESIC_ROLES": "methods", "METHODS": "methods",
     "DistanceReport": "geodesic", "GeodesicResult": "geodesic", "GeodesicSolver": "geodesic",
     "auto_t_coef": "geodesic", "geodesic_distances": "geodesic", "HybridResult": "hybrid",
     "hybrid_distances": "hybrid", "hybrid_weights": "hybrid", "region_mask": "hybrid",
