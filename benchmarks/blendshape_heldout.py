@@ -11,10 +11,10 @@ as the neutral and with the mean of the 5 still frames.
 Printed: weight RMS (all shapes, all frames), mesh error (frames whose mean true displacement
 exceeds 0.5 mm: sum of mean vertex errors over sum of mean true displacements) and the mean
 per-frame marker residual (cm), per variant. The figures go through the compute functions the
-processor calls; re-measure them through ``usdface solve`` once ``--neutral`` is wired.
+processor calls; ``--cli`` adds a row for ``usdface solve`` itself with every option at its default.
 
     python benchmarks/blendshape_heldout.py [--tuning] [--out DIR] [--neutral frame|robust|both]
-        [--smoothing HZ] [--sparsity B] [--symmetry G] [--no-refit] [--pose-refit N] [--references]
+        [--smoothing HZ] [--sparsity B] [--symmetry G] [--no-refit] [--pose-refit N] [--references] [--cli]
 """
 from __future__ import annotations
 
@@ -109,6 +109,34 @@ def references(rig, layout, truth, take) -> dict:
     return out
 
 
+def through_the_command(rig, layout, take, truth, *, tuning: bool) -> dict:
+    """``usdface solve`` itself, every option at its default, in a fresh process; the weights read
+    back from its ``--csv`` (columns by shape name)."""
+    import csv
+    import subprocess
+    import tempfile
+
+    from make_heldout_rig import TUNING_MESH, TUNING_SHAPES
+
+    with tempfile.TemporaryDirectory() as tmp:
+        rig_args = ["--mesh", str(TUNING_MESH), "--shapes", str(TUNING_SHAPES)] if tuning else \
+            ["--mesh", str(Path(take).with_name("rig.usdc"))]
+        argv = [sys.executable, "-m", "usdface", "solve", *rig_args, "--capture", str(take), "--layout", str(layout),
+                "-o", str(Path(tmp) / "curves.usdc"), "--csv", str(Path(tmp) / "curves.csv"), "-q"]
+        t0 = time.perf_counter()
+        subprocess.run(argv, check=True)
+        seconds = time.perf_counter() - t0
+        with open(Path(tmp) / "curves.csv", newline="") as f:
+            rows = list(csv.DictReader(f))
+    w = np.array([[float(row[name]) for name in rig.names] for row in rows])
+    if w.shape != truth["weights"].shape:
+        raise SystemExit(f"usdface solve wrote {w.shape[0]} frames x {w.shape[1]} shapes, the truth has "
+                         f"{truth['weights'].shape}")
+    return {"weightRMS": weight_rms(truth["weights"], w),
+            "meshError": mesh_error(rig.deltas, truth["weights"], rig.deltas, w),
+            "markerResidual": float("nan"), "seconds": seconds}
+
+
 def table(rows: dict) -> None:
     print("| variant | weight RMS | mesh error | marker residual (cm) | solve (s) |")
     print("|---|---|---|---|---|")
@@ -128,6 +156,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-refit", action="store_true")
     ap.add_argument("--pose-refit", type=int, help="override the pose refit rounds of the robust-neutral solve")
     ap.add_argument("--references", action="store_true", help="also the per-frame bounded least squares of issue 19")
+    ap.add_argument("--cli", action="store_true", help="also `usdface solve` itself (defaults) in a fresh process")
     args = ap.parse_args(argv)
     import logging
 
@@ -161,6 +190,9 @@ def main(argv=None) -> int:
         if r["rest"]:
             label += f" (neutral frames {r['rest']['frames'][0]}-{r['rest']['frames'][1]})"
         rows[label] = r
+    if args.cli:
+        rows["`usdface solve` (the command, defaults; seconds = the whole process)"] = through_the_command(
+            rig, layout, take, truth, tuning=args.tuning)
     if args.references:
         rows.update(references(rig, layout, truth, take))
     table(rows)
