@@ -1,9 +1,9 @@
 """The rest pose on the three real AnimFace takes: which frames, how still, and the jitter at rest.
 
-Each take is read from its Maya ASCII file and stabilised as ``usdface solve`` does it
-(``stabilize="auto"``, relative to the take's first frame), then the rest pose is averaged over the
-still stretch around the first frame (the default) and around the automatic neutral frame
-(``--neutral auto``) by :func:`usdface.capture.neutral.set_rest_pose`. Printed per take and mode:
+Each take is read from its Maya ASCII file and conditioned as ``usdface import-capture --stabilize``
+does it (:func:`usdface.capture.conditioning.condition_capture`: stabilised relative to the neutral
+frame, then the rest pose averaged over the still stretch around it), with the first frame as the
+neutral (the default) and with the automatic choice (``--neutral auto``). Printed per take and mode:
 
 - the frames used and the residual motion there (RMS and largest deviation of the markers from the
   rest pose, cm) and the measured white noise;
@@ -13,8 +13,7 @@ still stretch around the first frame (the default) and around the automatic neut
   and the displacement measured on the odd ones (the one-frame neutral taken from an even block
   too), so the rest pose is not judged on the frames it was averaged over.
 
-The figures go through the compute functions the conditioning calls; re-measure them through the
-commands once ``--neutral`` is wired (the capture layer records the frames and the motion).
+The frames and the motion are what the command prints and the capture layer records.
 
     python benchmarks/neutral_real_takes.py
 """
@@ -51,7 +50,7 @@ def held_out(positions, seed_in_block: int, rate: float) -> tuple[float, float]:
 
 
 def main(argv=None) -> int:
-    from usdface.capture.neutral import NEUTRAL_MOTION_WARN_CM, set_rest_pose
+    from usdface.capture.neutral import NEUTRAL_MOTION_WARN_CM
     from usdface.capture.conditioning import Conditioning, condition_capture
     from usdface.usd.inputs import load_capture
 
@@ -62,19 +61,20 @@ def main(argv=None) -> int:
           "rest pose (cm) | held out: one frame -> rest pose (cm) |")
     print("|---|---|---|---|---|---|---|---|")
     for take in TAKES:
-        cap, _ = condition_capture(load_capture(ROOT / "sample_assets" / "capture" / f"{take}MoCap.ma"),
-                                   Conditioning(stabilize="auto"))
         for mode in (None, "auto"):
-            out, rep = set_rest_pose(cap, mode)
-            a, b = out.neutral_frames
+            # conditioned exactly as `usdface import-capture --stabilize [--neutral auto]` does it
+            cap, reports = condition_capture(load_capture(ROOT / "sample_assets" / "capture" / f"{take}MoCap.ma"),
+                                             Conditioning(stabilize="auto", neutral=mode))
+            rest = reports["restPose"]
+            (a, b), frame = cap.neutral_window, cap.neutral_frame
             p = cap.positions[a:b]
-            one = jitter(p, cap.positions[rep.frame])
-            robust = jitter(p, out.neutral)
-            h_one, h_rest = held_out(p, rep.frame - a, cap.rate)
-            flag = " (warned)" if rep.warnings else ""
-            print(f"| {take} | {'first frame' if mode is None else 'auto'} (frame {rep.frame}) | {a}-{b - 1} | "
-                  f"{(b - a) / cap.rate:.2f} | {rep.motion_rms * rep.to_cm:.3f} / {rep.motion_max * rep.to_cm:.3f}{flag} "
-                  f"| {rep.noise * rep.to_cm:.5f} | {one:.3f} -> {robust:.3f} ({100 * (1 - robust / one):.0f}% less) | "
+            one = jitter(p, cap.positions[frame])
+            robust = jitter(p, cap.neutral)
+            h_one, h_rest = held_out(p, frame - a, cap.rate)
+            flag = " (warned)" if rest["warnings"] else ""
+            print(f"| {take} | {'first frame' if mode is None else 'auto'} (frame {frame}) | {a}-{b - 1} | "
+                  f"{(b - a) / cap.rate:.2f} | {rest['motionRmsCm']:.3f} / {rest['motionMaxCm']:.3f}{flag} "
+                  f"| {rest['noiseCm']:.5f} | {one:.3f} -> {robust:.3f} ({100 * (1 - robust / one):.0f}% less) | "
                   f"{h_one:.3f} -> {h_rest:.3f} |")
     return 0
 
