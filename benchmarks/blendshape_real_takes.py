@@ -1,7 +1,9 @@
 """The three real AnimFace takes solved on the MakeHuman ARKit rig: residuals, checks, plots.
 
-Each take is read from its Maya ASCII file, stabilised, bound with the sample layout and solved
-with ``usdface solve``'s defaults (:func:`usdface.blendshape.take.solve_take`). Printed per take:
+Each take is read from its Maya ASCII file, stabilised, given its rest pose (the still stretch at
+the first frame, :func:`usdface.capture.neutral.set_rest_pose`; ``--one-frame-neutral``: the first
+frame alone and no pose refit, as usdface 0.2), bound with the sample layout and solved with
+``usdface solve``'s defaults (:func:`usdface.blendshape.take.solve_take`). Printed per take:
 the mean per-frame marker residual against a still face's (all weights 0), the largest weights,
 and the two timing checks of issue 11:
 
@@ -35,6 +37,7 @@ def _spans(mask, times):
 
 def main(argv=None) -> int:
     from usdface.blendshape.rig import load_npz_rig
+    from usdface.blendshape.parameters import TakeParameters
     from usdface.blendshape.take import solve_take
     from usdface.io.meshes import read_mesh
     from usdface.mesh.binding import bind_layout
@@ -46,6 +49,8 @@ def main(argv=None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="out/blendshape")
+    ap.add_argument("--one-frame-neutral", action="store_true",
+                    help="measure from the first frame alone and skip the pose refit (usdface 0.2)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -56,9 +61,12 @@ def main(argv=None) -> int:
     panels, cells, captions = [], [], []
     camera = None
     for take in ("Jaw", "Eyebrows", "Nose"):
-        cap, _ = condition_capture(load_capture(a / f"capture/{take}MoCap.ma"), Conditioning(stabilize="auto"))
+        steps = Conditioning(stabilize="auto", neutral=(0, 1) if args.one_frame_neutral else None)
+        cap, reports = condition_capture(load_capture(a / f"capture/{take}MoCap.ma"), steps)
+        if not args.one_frame_neutral:
+            print(f"\n{take}: {reports['restPose']['text']}")
         binding = bind_layout(mesh, layout, cap)
-        res = solve_take(rig, cap, binding)
+        res = solve_take(rig, cap, binding, TakeParameters(pose_refit=0) if args.one_frame_neutral else TakeParameters())
         sol, d = res.solution, res.displacements
         w = sol.weights
         t = np.arange(w.shape[0]) / cap.rate

@@ -11,7 +11,7 @@ Layers, from the top; an import may only point down (or stay in its layer)::
     compute       capture mesh distance rbf skel blendshape tissue scan tracking evaluation preview
                   playblast media report
     io            usdface.io
-    base          errors units fileutil progress numba_cache memory model, and the package root
+    base          errors units fileutil progress numba_cache memory model revisions, and the package root
 
 Also: no cycle between usdface's packages; pxr only in usdface/usd/ (and the schema registration
 in usdface/__init__.py); cv2 only in io/, tracking/, scan/ and preview/; compute packages own their
@@ -43,7 +43,7 @@ LAYERS = (
     ("io", ("usdface.io",)),
     ("base", ("usdface.errors", "usdface.units", "usdface.fileutil", "usdface.progress", "usdface.numba_cache",
               "usdface.memory", "usdface.model", "usdface.cache", "usdface.lazy", "usdface.inputfiles",
-              "usdface.findings", "usdface")),
+              "usdface.findings", "usdface.revisions", "usdface")),
 )
 #: third-party modules confined to some packages
 CONFINED = {"pxr": ("usdface.usd", "usdface"), "cv2": ("usdface.io", "usdface.tracking", "usdface.scan",

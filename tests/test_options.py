@@ -83,8 +83,8 @@ def test_every_option_has_a_flag_and_help():
 
 
 def test_group_takes_a_group_out():
-    o = RunOptions(kernel="cubic", stiffness=2.5)
+    o = RunOptions(kernel="inverse_multiquadric", stiffness=2.5)
     t = o.group(TransferOptions)
     # the transfer reads the matrix of run's distance method (TransferOptions.method, since 0.3)
-    assert t == TransferOptions(kernel="cubic", stiffness=2.5, method="hybrid")
+    assert t == TransferOptions(kernel="inverse_multiquadric", stiffness=2.5, method="hybrid")
     assert TransferOptions.from_other(o) == t

@@ -17,7 +17,8 @@ cache is left without the entry, never with a partial one. A reader that finds a
 files do not match meta.json (a disk error, a hand edit) removes it and reports a miss.
 
 Keys are sha256 digests of the inputs that determine the value (see :func:`content_key`),
-including usdface's version, so a new release never reads an old release's values.
+including usdface's version and the algorithms' revision (:mod:`usdface.revisions`), so neither a
+new release nor a changed algorithm reads an old one's values.
 """
 from __future__ import annotations
 
@@ -50,10 +51,16 @@ _DISK_FULL = {errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC), errno.EFBIG}
 
 
 def content_key(kind: str, *parts) -> str:
-    """sha256 over ``kind``, usdface's version and ``parts`` (arrays by dtype, shape and bytes;
-    everything else as canonical JSON)."""
+    """sha256 over ``kind``, usdface's version, the revision of the processor that makes ``kind``
+    (:data:`usdface.revisions.CACHE_KINDS`; above 1 only, so revision-1 keys stay as they were) and
+    ``parts`` (arrays by dtype, shape and bytes; everything else as canonical JSON)."""
+    from .revisions import CACHE_KINDS, revision
+
     h = hashlib.sha256()
     h.update(f"usdface-cache/1\0{kind}\0{__version__}\0".encode())
+    made_by = revision(CACHE_KINDS[kind]) if kind in CACHE_KINDS else 1
+    if made_by > 1:  # an entry an older revision made is never read
+        h.update(f"revision\0{made_by}\0".encode())
     for part in parts:
         _update(h, part)
     return h.hexdigest()

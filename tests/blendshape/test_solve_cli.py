@@ -245,6 +245,8 @@ def test_reduced_keys_are_the_same_curves_in_every_output(tmp_path, sample_asset
 def test_corrective_points_shot_hits_the_markers(tmp_path, sample_assets):
     from pxr import Usd, UsdGeom
 
+    from usdface.blendshape.rig import load_npz_rig
+    from usdface.blendshape.take import solve_take
     from usdface.capture.retarget import marker_displacements
     from usdface.io.meshes import read_mesh
     from usdface.mesh.binding import bind_layout
@@ -267,7 +269,11 @@ def test_corrective_points_shot_hits_the_markers(tmp_path, sample_assets):
                                Conditioning(trim=(400, 560), stabilize="auto"))
     mesh = read_mesh(sample_assets / "meshes" / "makehuman_hm08_face_cm.obj")
     binding = bind_layout(mesh, read_layout(layout), cap)
-    d = marker_displacements(cap, binding.names, binding.displacement_transform())
+    rig = load_npz_rig(sample_assets / "meshes" / "makehuman_hm08_face_units_cm.npz", mesh)
+    # the displacements the solve fitted: the stabilised ones with the pose refit's corrections
+    d = solve_take(rig, cap, binding).displacements
+    raw = marker_displacements(cap, binding.names, binding.displacement_transform())
+    assert np.nanmax(np.abs(d - raw)) > 1e-3  # the refit moved them (the head motion carries the rest)
     stage = Usd.Stage.Open(str(shot))
     assert not stage.GetRootLayer().subLayerPaths and stage.GetStartTimeCode() == 0
     pts = UsdGeom.Mesh(stage.GetPrimAtPath("/Face/Geom")).GetPointsAttr()
@@ -345,3 +351,35 @@ def test_blend_shapes_belong_to_the_rig_and_the_take(tmp_path, sample_assets, ja
     assert made["capture"] == layer_provenance(tmp_path / "jaw.usdc")["identity"]["capture"]
     assert made["mesh"] == layer_provenance(tmp_path / "mesh.usdc")["identity"]["mesh"]
     assert made["markers"]["count"] == 41
+
+
+def test_pose_refit_is_on_by_default_recorded_and_printed(jaw, sample_assets, rig_args, tmp_path, capsys):
+    """Issue 19: the solve refits the head stabilisation and the rest pose (4 rounds at most by
+    default), says so, and records the rounds in the layer's provenance; --pose-refit 0 is the
+    solve of usdface 0.2 (nothing refitted)."""
+    from usdface.usd.layers import layer_provenance
+
+    def read_provenance(path):
+        return {**layer_provenance(path), "options": json.loads(layer_provenance(path)["options"])}
+
+    out, summary = jaw
+    refit = summary["poseRefit"]
+    assert 1 <= refit["rounds"] <= 4 and refit["headAngleDegMax"] > 0
+    assert read_provenance(out / "jaw.usdc")["options"]["pose_refit"] == 4
+    assert cli("solve", *rig_args, "--capture", sample_assets / "capture" / "JawMoCap.ma", "--trim", "0", "300",
+               "--pose-refit", "0", "-o", tmp_path / "off.usdc") == 0
+    text = capsys.readouterr().out.splitlines()
+    assert text[2].startswith("  rest pose: frames 0-") and not any("pose refit" in line for line in text)
+    assert read_provenance(tmp_path / "off.usdc")["options"]["pose_refit"] == 0
+    assert cli("solve", *rig_args, "--capture", sample_assets / "capture" / "JawMoCap.ma", "--trim", "0", "300",
+               "-o", tmp_path / "on.usdc") == 0
+    text = capsys.readouterr().out.splitlines()
+    assert text[3].startswith("  pose refit: ") and "round(s); rest pose corrected by " in text[3]
+
+
+@pytest.mark.parametrize("value", ["-1", "1.5", "many"])
+def test_pose_refit_takes_a_whole_number(value, sample_assets, rig_args, tmp_path, capsys):
+    assert cli("solve", *rig_args, "--capture", sample_assets / "capture" / "JawMoCap.ma", f"--pose-refit={value}",
+               "-o", tmp_path / "c.usdc") == 2
+    assert capsys.readouterr().err.splitlines() == [f"usdface solve: error: --pose-refit {value}: expected a whole "
+                                                    "number >= 0"]

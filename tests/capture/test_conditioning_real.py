@@ -219,3 +219,33 @@ def test_conditioning_pipeline_records_every_step(takes):
     steps = [h["step"] for h in out.history][1:]  # after the reader's own entry
     assert steps == ["fix_swaps", "fill_gaps", "filter_noise", "stabilize", "trim", "resample"]
     json.dumps(list(out.history))
+
+
+@pytest.mark.parametrize("name", TAKES)
+@pytest.mark.parametrize("mode", [None, "auto"])
+def test_rest_pose_on_the_real_takes(stabilized, name, mode):
+    """The still stretch around the first frame and the automatic neutral of each real take: at least
+    0.2 s, quieter than the warning threshold, and a rest pose that cuts the jitter at rest on frames
+    it was not averaged over (0.1 s blocks: averaged over the even ones, measured on the odd ones)."""
+    from usdface.capture.neutral import NEUTRAL_MOTION_WARN_CM, set_rest_pose
+    from usdface.capture.rest import robust_rest_pose
+
+    cap = stabilized[name]
+    out, rep = set_rest_pose(cap, mode)
+    a, b = out.neutral_frames
+    print(f"{name} {mode or 'first'}: frames {a}-{b - 1}, motion {rep.motion_rms:.3f} / {rep.motion_max:.3f} cm")
+    assert b - a >= 0.2 * cap.rate
+    assert rep.motion_rms < NEUTRAL_MOTION_WARN_CM and not rep.warnings
+    if mode is None:
+        assert a == 0
+    p = cap.positions[a:b]
+    even = (np.arange(b - a) // 6) % 2 == 0
+    rest = robust_rest_pose(p[even])[0]
+
+    def jitter(ref):
+        return np.sqrt(np.nanmean(((p[~even] - ref[None]) ** 2).sum(axis=2)))
+
+    one_frame = [jitter(p[i]) for i in np.flatnonzero(even)]
+    assert jitter(rest) < np.median(one_frame)
+    seed = rep.frame - a if even[rep.frame - a] else int(np.flatnonzero(even)[0])
+    assert jitter(rest) < jitter(p[seed])  # the frame usdface 0.2 measured from

@@ -30,9 +30,11 @@ def test_evaluate_command_writes_the_table(paths, tmp_path, capsys):
     assert summary["shapes"] == ["eyeBlinkLeft", "eyeBlinkRight", "jawOpen"]
     labels = [c["label"] for c in summary["configs"]]
     # 2 methods x (paper + interpolate/upper) x 2 widths
-    assert len(labels) == 8 and "hybrid/graph interpolate gauss 2 cm pin=upper" in labels
+    # interpolate rows on the pipeline's fast marching, paper rows on the paper's edge paths
+    assert len(labels) == 8 and "hybrid/fmm interpolate gauss 2 cm pin=upper" in labels
+    assert "hybrid/graph paper gauss 2 cm pin=-" in labels
     text = out.read_text()
-    assert "### The paper's claim" in text and "| hybrid/graph | interpolate | gauss 2 cm | upper |" in text
+    assert "### The paper's claim" in text and "| hybrid/fmm | interpolate | gauss 2 cm | upper |" in text
     assert "jawOpen upperLip" in text
     assert result.files == {"output": str(out)} and result.layers == {}
     assert result.text[-1] == f"wrote {out}" and text == "\n".join(result.text[:-2]) + "\n"

@@ -13,13 +13,21 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial.distance import cdist
 
 from usdface.errors import InputError, OptionError
-from usdface.evaluation.quality import (REGION_NAMES, TransferConfig as T, TransferSetup, claim_numbers, evaluate,
+from usdface.evaluation.quality import (REGION_NAMES, TransferConfig, TransferSetup, claim_numbers, evaluate,
                                         format_report, loop_rims, marker_displacements, parse_configs,
                                         select_shapes, shape_errors, summary_rows)
 from usdface.io.meshes import read_mesh
 from usdface.mesh.layout import read_layout
 from usdface.mesh.topology import find_hole_regions
 from usdface.mesh.layout_binding import binding_from_layout
+
+
+def T(*args, **kwargs) -> TransferConfig:
+    """A config on edge-path geodesics (what the independent transfer below recomputes) unless it
+    names its back-end."""
+    kwargs.setdefault("backend", "graph")
+    return TransferConfig(*args, **kwargs)
+
 
 SHAPES = ("jawOpen", "eyeBlinkLeft", "mouthSmileLeft", "browInnerUp")
 
@@ -45,6 +53,7 @@ def few(face):
 @pytest.fixture(scope="module")
 def report(face, few):
     configs = [T("euclidean", "interpolate", pin="border"), T("euclidean", "paper", width_cm=2.0, pin="none"),
+               T("euclidean", "interpolate", pin="border", width_rule="legacy"), T("euclidean", "paper", pin="none"),
                T("geodesic", "interpolate", width_cm=2.0, pin="upper"),
                T("hybrid", "interpolate", width_cm=2.0, pin="none"),
                T("euclidean", "interpolate", width_cm=2.0, pin="none"),
@@ -64,6 +73,18 @@ def median_spacing(points):
     d = cdist(points, points)
     np.fill_diagonal(d, np.inf)
     return float(np.median(d.min(axis=1)))
+
+
+def local_widths(points, n_centres, factor=0.7, k=3):
+    """The interpolate default, written out: each marker 0.7 x its mean distance to its 3 nearest
+    markers; every constraint centre 0.7 x the median of those."""
+    local = []
+    for j in range(len(points)):
+        d = sorted(float(np.linalg.norm(points[j] - points[i])) for i in range(len(points)) if i != j)
+        local.append(sum(d[:k]) / k)
+    out = np.full(n_centres, factor * float(np.median(local)))
+    out[: len(points)] = factor * np.array(local)
+    return out
 
 
 def independent_transfer(D_vc, D_cc, disp, *, M, mode, width, binding=None):
@@ -209,7 +230,10 @@ def test_euclidean_errors_match_an_independent_transfer(face, few, report):
     disp = np.einsum("mk,fmkd->fmd", b.barycentrics, few[1][:, b.triangle_vertices])
     masks = independent_masks(mesh, face["regions"])
     h = median_spacing(mp)
-    for cfg, width in ((T("euclidean", "interpolate", pin="border"), 1.1 * h),
+    local = local_widths(mp, len(mp) + s.constraints(T("euclidean", "interpolate", pin="border")).size)
+    for cfg, width in ((T("euclidean", "interpolate", pin="border"), local),
+                       (T("euclidean", "interpolate", pin="border", width_rule="legacy"), 1.1 * h),
+                       (T("euclidean", "paper", pin="none"), 1.1 * h),
                        (T("euclidean", "paper", width_cm=2.0, pin="none"), 2.0),
                        (T("euclidean", "interpolate", width_cm=2.0, pin="none"), 2.0)):
         cons = s.constraints(cfg)
@@ -217,7 +241,7 @@ def test_euclidean_errors_match_an_independent_transfer(face, few, report):
         pred = independent_transfer(cdist(p, centres), cdist(centres, centres), disp, M=len(mp),
                                     mode=cfg.mode, width=width, binding=b)
         res = report.result(cfg)
-        assert res.width_cm == pytest.approx(width)
+        assert res.width_cm == pytest.approx(np.median(np.broadcast_to(width, (centres.shape[0],))[: len(mp)]))
         np.testing.assert_allclose(res.predictions, pred, atol=1e-9)
         err = np.linalg.norm(pred - few[1], axis=2)
         for r in ("face", "mouth", "eyes", "rest"):
@@ -313,6 +337,26 @@ def test_summary_rows_and_report(report):
     assert d["shapes"] == list(SHAPES) and len(d["configs"]) == len(report.results)
     sub = report.subset(["jawOpen"])
     assert sub.results[0].mean_error.shape == (1, len(REGION_NAMES))
+
+
+def test_report_gives_the_whole_set_figures(report):
+    """The JSON and the markdown carry issue 19's mesh error and jaw-drop mouth error per row,
+    from plain sums over the per-shape face errors."""
+    face = REGION_NAMES.index("face")
+    d = {c["label"]: c for c in report.to_dict()["configs"]}
+    text = "\n".join(format_report(report))
+    assert "### Whole-set figures" in text
+    for res in report.results:
+        true = report.truth_mean
+        moving = true > 0.05
+        expect = 100 * res.mean_error[moving, face].sum() / true[moving].sum()
+        jaw = res.mean_error[report.shape("jawOpen"), REGION_NAMES.index("mouth")]
+        got = d[res.config.label]
+        assert got["meshErrorPct"] == pytest.approx(expect, abs=1e-4)
+        assert got["meshErrorAllShapesPct"] == pytest.approx(100 * res.mean_error[:, face].sum() / true.sum(), abs=1e-4)
+        assert got["jawDropMouthErrorCm"] == pytest.approx(jaw, abs=1e-4)
+        c = res.config
+        assert f"| {c.method_label} | {c.mode} | {c.kernel_label} | {c.pin_label} | {expect:.1f}% |" in text
 
 
 def test_units_do_not_change_the_errors(face, few):

@@ -101,7 +101,7 @@ def test_run_passes_resample_and_start_frame(sample_assets, tmp_path, cli):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--rbf", "paper", "--kernel", "cubic"], "does not decay"),
+    (["--rbf", "paper", "--kernel", "cubic"], "need a kernel that decays with distance"),
     (["--rbf", "paper", "--polynomial"], "interpolate only"),
     (["--stiffness", "no_such_widths.json"], "no_such_widths.json"),
     (["--stiffness", "-1"], "--stiffness -1: expected a number > 0"),  # a width, not a file named -1

@@ -128,11 +128,17 @@ def test_head_motion_is_the_face_transform_not_a_joint(skel_default, ucli, jaw, 
     assert np.linalg.norm(world - points_of(jaw["anim"])[frames], axis=2).max() <= DCC_TARGET
 
 
-def test_placement_is_in_mesh_space_without_compensating_transforms(skel_default, jaw):
+def test_placement_is_in_mesh_space_without_compensating_transforms(ucli, jaw):
+    from usdface.usd.capture_layer import read_capture_layer, write_capture_layer
     from usdface.usd.layers import open_stage
     from usdface.usd.mesh_layer import read_binding, read_mesh_layer
 
-    out, _ = skel_default
+    # the rest pose of the neutral frame alone: that frame's displacement is exactly zero
+    one_frame = jaw["dir"] / "capture_one_frame_rest.usdc"
+    write_capture_layer(one_frame, read_capture_layer(jaw["capture"]).replace(neutral_window=None),
+                        prov={"processor": "test"})
+    out = jaw["dir"] / "skel_one_frame_rest.usdc"
+    _skel(ucli, jaw, out, capture=one_frame)
     stage = Usd.Stage.Open(str(out))
     skel = UsdSkel.Skeleton(stage.GetPrimAtPath("/Face/Skeleton"))
     assert not skel.GetOrderedXformOps() and not skel.GetPrim().GetPropertiesInNamespace("xformOp")

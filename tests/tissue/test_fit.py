@@ -62,3 +62,26 @@ def test_fit_recovers_simulated_contractions(face, markers):
     assert final <= res.errors["pass1"]["rms"]
     assert set(res.per_marker) == set(names)
     assert res.skin.shape == (5, face.mesh.n_points, 3)
+
+
+def test_capture_displacements_start_from_the_rest_pose():
+    """fit-muscles measures from the capture's rest pose (its neutral stretch, averaged robustly),
+    as transfer, skel and solve do, not from the neutral frame alone."""
+    from usdface.model.capture import Capture
+    from usdface.model.mesh import Binding as MeshBinding
+    from usdface.model.rest import robust_rest_pose
+    from usdface.tissue.fit import capture_displacements
+
+    rng = np.random.default_rng(5)
+    names = ("a", "b", "c", "d")
+    pos = rng.normal(0.0, 0.03, (40, 4, 3)) + np.arange(12.0).reshape(1, 4, 3)
+    cap = Capture(names, pos, 60.0, units="cm", neutral_frame=3, neutral_window=(0, 20), head_motion=np.tile(
+        np.eye(4), (40, 1, 1)))
+    binding = MeshBinding(names=("c", "a"), face_indices=np.zeros(2, dtype=np.int64),
+                          triangle_vertices=np.zeros((2, 3), dtype=np.int64), barycentrics=np.full((2, 3), 1 / 3),
+                          nearest_vertices=np.zeros(2, dtype=np.int64), residuals=np.zeros(2),
+                          capture_to_mesh=np.eye(4))
+    d, _ = capture_displacements(cap, binding)
+    rest = robust_rest_pose(pos[0:20])[0][[2, 0]]
+    np.testing.assert_allclose(d, pos[:, [2, 0]] - rest[None], atol=1e-12)
+    assert np.abs(d[3]).max() > 1e-3  # the neutral frame itself moves from the rest pose (noise)

@@ -72,3 +72,74 @@ def test_reading_a_layer_without_markers_names_the_file(tmp_path):
     stage.Save()
     with pytest.raises(InputError, match=r"empty\.usda.*no Points prim with FaceMarkerSetAPI"):
         read_capture_layer(path)
+
+
+def test_the_neutral_stretch_and_rest_pose_round_trip(tmp_path):
+    from pxr import Usd
+
+    from usdface.capture.neutral import set_rest_pose
+    from usdface.usd.info import describe, format_description
+
+    rng = np.random.default_rng(2)
+    base = _capture(rng, with_motion=False)
+    still = np.repeat(base.positions[10:11], 50, axis=0) + rng.normal(0, 0.03, base.positions.shape)
+    still[30:] += np.linspace(0, 2, 20)[:, None, None]  # the face moves from frame 30
+    still[3:9, 1] = np.nan
+    cap, report = set_rest_pose(base.replace(positions=still, neutral_frame=0))
+    assert report.start == 0 and 25 <= report.end <= 31
+    out = tmp_path / "cap.usdc"
+    write_capture_layer(out, cap, prov={"processor": "test"})
+    back = read_capture_layer(out)
+    assert back.neutral_frame == 0 and back.neutral_frames == cap.neutral_frames
+    np.testing.assert_allclose(back.neutral, cap.neutral, atol=2e-5)
+    stage = Usd.Stage.Open(str(out))
+    prim = stage.GetPrimAtPath("/Capture/Markers")
+    assert prim.GetAttribute("usdface:markerSet:neutralStartTime").Get() == 10
+    assert prim.GetAttribute("usdface:markerSet:neutralEndTime").Get() == 10 + report.end - 1
+    np.testing.assert_allclose(np.asarray(prim.GetAttribute("usdface:markerSet:restPoints").Get()), cap.neutral,
+                               atol=2e-5)
+    assert prim.GetAttribute("usdface:markerSet:neutralMotionRms").Get() == pytest.approx(report.motion_rms)
+    info = describe(out)["prims"][1]["markerSet"]
+    assert info["neutralTimes"] == [10, 10 + report.end - 1]
+    assert info["neutralMotionRmsCm"] == pytest.approx(report.motion_rms, abs=1e-5)
+    text = "\n".join(format_description(describe(out)))
+    assert (f"neutral times 10-{10 + report.end - 1} (around neutral frame 10), markers move {report.motion_rms:.3f} cm RMS "
+            f"({report.motion_max:.3f} cm at most) there") in text
+
+
+def test_layers_without_a_neutral_stretch_read_as_one_frame(tmp_path, sample_assets):
+    """usdface 0.2 wrote the neutral time alone: the rest pose is that frame."""
+    from pxr import Sdf
+
+    from usdface.usd.info import describe, format_description
+
+    old = sample_assets / "capture" / "JawMoCap.usdc"  # written before the stretch was recorded
+    cap = read_capture_layer(old)
+    assert cap.neutral_window is None and cap.neutral_frames == (cap.neutral_frame, cap.neutral_frame + 1)
+    np.testing.assert_array_equal(cap.neutral, cap.positions[cap.neutral_frame])
+    m = describe(old)["prims"][1]["markerSet"]
+    assert m["neutralTimes"] == [m["neutralTime"]] * 2 and m["neutralMotionRmsCm"] is None
+    assert f"neutral time {m['neutralTime']:g}\n" in "\n".join(format_description(describe(old))) + "\n"
+    # the same with the new attributes removed from a new layer
+    new = tmp_path / "cap.usda"
+    write_capture_layer(new, _capture(np.random.default_rng(5)), prov={"processor": "test"})
+    layer = Sdf.Layer.FindOrOpen(str(new))
+    spec = layer.GetPrimAtPath("/Capture/Markers")
+    for name in ("neutralStartTime", "neutralEndTime", "restPoints", "neutralMotionRms", "neutralMotionMax"):
+        spec.RemoveProperty(spec.properties[f"usdface:markerSet:{name}"])
+    layer.Save()
+    back = read_capture_layer(new)
+    assert back.neutral_window is None and back.neutral_frame == 4
+
+
+def test_a_recorded_stretch_outside_the_layer_is_refused(tmp_path):
+    from pxr import Sdf
+
+    new = tmp_path / "cap.usda"
+    write_capture_layer(new, _capture(np.random.default_rng(5)), prov={"processor": "test"})
+    layer = Sdf.Layer.FindOrOpen(str(new))
+    layer.GetAttributeAtPath("/Capture/Markers.usdface:markerSet:neutralEndTime").default = 99.0
+    layer.Save()
+    with pytest.raises(InputError, match=r"neutral stretch 14-99 must hold the neutral time 14 and lie within the "
+                                         r"layer's time codes 10-59"):
+        read_capture_layer(new)

@@ -8,6 +8,7 @@
 - :mod:`~usdface.blendshape.take` — one capture + binding + rig -> curves and deliverables;
 - :mod:`~usdface.blendshape.report` — the summary and printed lines of a solved take;
 - :mod:`~usdface.blendshape.corrective` — the rig's pose plus the RBF transfer of its residual;
+- :mod:`~usdface.blendshape.posefit` — the solve corrects the head stabilisation and the rest pose;
 - :mod:`~usdface.blendshape.curves` — resampling to film rates, key reduction;
 - :mod:`~usdface.blendshape.csvio` — the curves CSV and the Live Link Face CSV;
 - :mod:`~usdface.blendshape.rig_transfer` — a generic rig carried onto a face without one;

@@ -5,10 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..distance.methods import DEFAULT_BACKEND
+
 __all__ = ["corrective_points", "CORRECTIVE_METHOD", "CORRECTIVE_BACKEND", "CHUNK_FRAMES"]
 
-#: the distances the residual is transferred over: hybrid (paper Eq. 8) on shortest edge paths
-CORRECTIVE_METHOD, CORRECTIVE_BACKEND = "hybrid", "graph"
+#: the distances the residual is transferred over: hybrid (paper Eq. 8) on the pipeline's default
+#: geodesics (fast marching)
+CORRECTIVE_METHOD, CORRECTIVE_BACKEND = "hybrid", DEFAULT_BACKEND
 #: frames transferred at once
 CHUNK_FRAMES = 256
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 __all__ = ["SolverParameters", "TakeParameters", "DeliveryParameters", "DEFAULT_SMOOTHING_HZ", "DEFAULT_SPARSITY",
            "DEFAULT_SYMMETRY", "DEFAULT_TOLERANCE", "DEFAULT_MAX_ITERATIONS", "DEFAULT_SUPPORT_THRESHOLD",
            "DEFAULT_SUPPORT_DILATION_S", "DEFAULT_RHO", "DEFAULT_RELAXATION", "DEFAULT_EXCLUDE", "DELIVERY_RATES",
-           "RIG_TRANSFER_METHODS", "DEFAULT_RIG_TRANSFER"]
+           "RIG_TRANSFER_METHODS", "DEFAULT_RIG_TRANSFER", "DEFAULT_POSE_REFIT_ROUNDS"]
 
 #: temporal smoothness cut-off (Hz): a shape fitted alone is low-passed here
 DEFAULT_SMOOTHING_HZ = 6.0
@@ -30,6 +30,10 @@ DEFAULT_RHO = 0.1
 DEFAULT_RELAXATION = 1.8
 #: shapes held at 0 by default: skin markers see neither gaze nor the tongue
 DEFAULT_EXCLUDE = ("eyeLook*", "tongueOut")
+#: pose refit: at most this many rounds (correct the head and the rest pose with the rig's pose, solve
+#: again) after the first solve (:mod:`usdface.blendshape.posefit`; chosen on the tuning rig of
+#: ``benchmarks/make_heldout_rig.py --tuning``)
+DEFAULT_POSE_REFIT_ROUNDS = 4
 #: the delivery rates ``--fps`` offers (any positive rate is accepted by the functions)
 DELIVERY_RATES = (24.0, 25.0, 30.0)
 #: how `shapes transfer` carries each shape onto the registered generic (:mod:`usdface.blendshape.rig_transfer`)
@@ -85,18 +89,29 @@ class TakeParameters:
         Glob patterns of shapes held at 0 (default :data:`DEFAULT_EXCLUDE`); ``()`` solves every shape.
     head_motion : bool
         Keep the capture's head motion for the outputs (decision D1); False drops it.
+    pose_refit : int
+        Rounds of pose refit after the first solve (:mod:`usdface.blendshape.posefit`); 0: off.
     """
 
     solver: SolverParameters = field(default_factory=SolverParameters)
     exclude: tuple = DEFAULT_EXCLUDE
     head_motion: bool = True
+    pose_refit: int = DEFAULT_POSE_REFIT_ROUNDS
+
+    def __post_init__(self) -> None:
+        rounds = self.pose_refit
+        if isinstance(rounds, bool) or not isinstance(rounds, int) or rounds < 0:
+            from ..errors import OptionError
+
+            raise OptionError(f"--pose-refit {rounds!r}: expected a whole number >= 0")
 
     def record(self) -> dict:
-        """The solver's settings as usdface 0.2 recorded them in provenance (JSON types)."""
+        """The solver's settings as provenance records them (JSON types): usdface 0.2's keys and
+        ``pose_refit`` (0.2 had no refit: a layer without the key was solved with 0 rounds)."""
         s = self.solver
         return {"smoothing_hz": s.smoothing_hz, "sparsity": s.sparsity, "symmetry": s.symmetry,
                 "exclude": list(self.exclude), "refit": s.refit, "max_iterations": s.max_iterations,
-                "tolerance": s.tolerance}
+                "tolerance": s.tolerance, "pose_refit": self.pose_refit}
 
 
 @dataclass(frozen=True)

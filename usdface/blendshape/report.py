@@ -47,12 +47,14 @@ def take_summary(take, curves, rig, binding, *, output: str, conditioning: dict)
         "headMotion": take.head_motion is not None, "keys": curves.key_counts,
         "keyTolerance": curves.tolerance, "timeSamples": int(curves.sample_frames.size),
         "warnings": list(take.warnings), "rigNotes": list(rig.notes), "conditioning": conditioning,
+        "poseRefit": take.pose_refit,
     }
 
 
 def layer_report(summary: dict) -> dict:
     """What the curves layer stores beside its provenance (a subset of the summary)."""
-    return {k: summary[k] for k in ("residualMean", "stillResidualMean", "iterations", "mirror", "excludedShapes")}
+    return {k: summary[k] for k in ("residualMean", "stillResidualMean", "iterations", "mirror", "excludedShapes",
+                                    "poseRefit")}
 
 
 def take_text(summary: dict) -> list[str]:
@@ -70,6 +72,16 @@ def take_text(summary: dict) -> list[str]:
              f"  solve: {summary['frames']} frames at {summary['rate']:g} Hz in {summary['solveSeconds']:.3f} s "
              f"({summary['iterations']} iterations); marker residual mean {cm('residualMean')} "
              f"(still face {cm('stillResidualMean')}), max {cm('residualMax')}"]
+    rest = summary.get("conditioning", {}).get("restPose")
+    if rest is not None:
+        lines.append(f"  {rest['text']}")
+    refit = summary.get("poseRefit")
+    if refit is not None and refit["rounds"]:
+        frames = refit["restFrames"]
+        lines.append(f"  pose refit: {refit['rounds']} round(s); rest pose corrected by {refit['restOffsetRmsCm']:.3f} cm RMS"
+                     + (f" over the quiet frames {frames[0]}-{frames[-1]}" if frames else " (no quiet neutral frames)")
+                     + (f"; head turned {refit['headAngleDegMedian']:.2f} deg more (median, {refit['headAngleDegMax']:.2f} "
+                        "max) than the stabilisation said" if "headAngleDegMedian" in refit else ""))
     top = sorted(summary["weightMax"].items(), key=lambda kv: -kv[1])[:6]
     lines.append("  largest weights: " + ", ".join(f"{n} {v:.2f}" for n, v in top))
     pairs = summary["mirror"].get("prior", [])

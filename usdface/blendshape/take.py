@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError, OptionError, list_names
+from .posefit import refit_pose
 from .mirror import find_mirror_pairs
 from .parameters import DEFAULT_EXCLUDE, DELIVERY_RATES, TakeParameters  # noqa: F401 (re-exported)
 from .rig import BlendShapeRig, marker_basis
@@ -33,11 +34,12 @@ class TakeSolution:
     solution: CurveSolution
     rate: float
     start_frame: int
-    head_motion: np.ndarray | None  # (F, 4, 4) mesh space, relative to the neutral frame
-    displacements: np.ndarray       # (F, M, 3) mesh units, NaN where invalid
+    head_motion: np.ndarray | None  # (F, 4, 4) mesh space, relative to the rest pose (pose refit included)
+    displacements: np.ndarray       # (F, M, 3) mesh units, NaN where invalid (as solved: pose refit applied)
     basis: np.ndarray               # (M, K, 3) mesh units
     mirror: dict
     warnings: list = field(default_factory=list)
+    pose_refit: dict | None = None  # :meth:`usdface.blendshape.posefit.PoseRefit.summary`; None: not run
 
     @property
     def weights(self) -> np.ndarray:
@@ -90,7 +92,10 @@ def solve_take(rig: BlendShapeRig, capture, binding, params: TakeParameters = Ta
         The solver's settings (:class:`usdface.blendshape.parameters.SolverParameters`; sparsity
         and symmetry are in cm^2 / dimensionless whatever the mesh units: converted here), the
         shapes held at 0 (glob patterns; default :data:`DEFAULT_EXCLUDE`, ``()`` or ``"none"``
-        solves every shape) and whether the capture's head motion is kept for the outputs (D1).
+        solves every shape), whether the capture's head motion is kept for the outputs (D1), and
+        the rounds of pose refit: correcting the rest pose (over the quiet frames of the neutral
+        stretch) and, for a stabilised capture, the head stabilisation with the rig's pose
+        (:mod:`usdface.blendshape.posefit`; the head correction joins the head motion; 0: off).
 
     Returns
     -------
@@ -129,7 +134,11 @@ def solve_take(rig: BlendShapeRig, capture, binding, params: TakeParameters = Ta
     valid = np.isfinite(disp).all(axis=2)
     if not valid.any():
         raise InputError(f"capture {capture.source}: no valid marker sample to solve from")
-    sol = solver.solve(disp * to_cm, rate=capture.rate)
+    bound = binding.surface_points(rig.mesh.points) * to_cm
+    sol, solved, refit = refit_pose(solver, disp * to_cm, bound, rate=capture.rate, rounds=params.pose_refit,
+                                    tolerance=params.solver.tolerance, solve_options={},
+                                    head=capture.head_motion is not None, rest_frames=capture.neutral_frames)
+    disp = solved / to_cm
     sol.residual = sol.residual / to_cm  # back to mesh units
     sol.still_residual = sol.still_residual / to_cm
     sol.marker_rms = sol.marker_rms / to_cm
@@ -140,8 +149,13 @@ def solve_take(rig: BlendShapeRig, capture, binding, params: TakeParameters = Ta
         warnings.append(msg)
         log.warning("%s", msg)
     hm = mesh_head_motion(capture, binding) if params.head_motion else None
+    if hm is not None and refit.corrections is not None:
+        # the stabilised markers sit at corrections[f] @ (rig pose): the head moved that much more
+        corr = refit.corrections.copy()
+        corr[:, :3, 3] /= to_cm
+        hm = np.einsum("fij,fjk->fik", hm, corr)
     return TakeSolution(sol, float(capture.rate), int(capture.start_frame), hm, disp, basis, mirror.summary(),
-                        warnings)
+                        warnings, refit.summary())
 
 
 def deliverable_curves(names, weights, *, rate: float, fps: float | None = None, key_tolerance: float | None = None,

@@ -21,9 +21,12 @@ class Conditioning:
     `import-capture` build it (:meth:`usdface.options.CaptureOptions.conditioning`).
 
     ``trim`` (START, END) frame indices; ``fill_gaps`` longest gap filled (frames); ``filter``
-    "butterworth" or "savgol" with ``cutoff`` (Hz); ``resample`` new rate (Hz); ``neutral`` a frame
-    index or "auto"; ``stabilize`` "auto" or marker names; ``start_frame`` the first time code;
-    ``allow`` plausibility findings accepted; ``drop_outliers`` outlier samples become gaps.
+    "butterworth" or "savgol" with ``cutoff`` (Hz); ``resample`` new rate (Hz); ``neutral`` where
+    the rest pose comes from: None (the still stretch around the first frame), "auto" (around the
+    automatically chosen frame), a frame index F (around F) or a range (START, END) (exactly those
+    frames, END exclusive), frame indices after trimming (:func:`usdface.capture.neutral.parse_neutral`
+    also takes "F" and "START:END"); ``stabilize`` "auto" or marker names; ``start_frame`` the first
+    time code; ``allow`` plausibility findings accepted; ``drop_outliers`` outlier samples become gaps.
     """
 
     trim: tuple | None = None
@@ -43,11 +46,15 @@ def condition_capture(capture: Capture, steps: Conditioning = Conditioning()) ->
 
     Order: trim -> plausibility checks (:mod:`usdface.capture.plausibility`; ``drop_outliers``
     turns outlier samples into gaps; ``allow`` accepts findings by code) -> marker-swap detection
-    (reported) -> gap filling -> noise filter -> resample -> neutral frame -> head stabilisation
-    (relative to the neutral frame; judged on held-out markers) -> time offset (time code = frame
-    index from 0, or from ``start_frame``).
+    (reported) -> gap filling -> noise filter -> neutral frame (or named frames) -> resample -> head
+    stabilisation (relative to the neutral frame; judged on held-out markers) -> rest pose (the still
+    stretch around the neutral frame, or the named frames, averaged robustly:
+    :func:`usdface.capture.neutral.set_rest_pose`; ``reports["restPose"]``, and a warning logged
+    when the markers move more than :data:`usdface.capture.neutral.NEUTRAL_MOTION_WARN_CM` there)
+    -> time offset (time code = frame index from 0, or from ``start_frame``).
 
-    Raises PlausibilityError on a plausibility error that ``allow`` does not accept.
+    Raises PlausibilityError on a plausibility error that ``allow`` does not accept, OptionError
+    (exit 2) when ``neutral`` names frames outside the take (after trimming).
     """
     from . import gaps, neutral as neutral_mod, plausibility, swaps, timing
 
@@ -96,17 +103,9 @@ def condition_capture(capture: Capture, steps: Conditioning = Conditioning()) ->
         # a Savitzky-Golay filter is set by its window, not a cutoff frequency
         cutoff_option = {"cutoff_hz": cutoff} if filter == "butterworth" else {}
         capture = filtering.filter_noise(capture, method=filter, **cutoff_option)
-    # the neutral frame is chosen on the capture's own frames (after trimming), then resampling
-    # carries it to the nearest new frame
-    if neutral == "auto":
-        index, report = neutral_mod.choose_neutral(capture)
-        capture = neutral_mod.set_neutral(capture, index, how="auto")
-        reports["neutral"] = report.summary()
-    elif neutral is not None:
-        if not 0 <= neutral < capture.n_frames:
-            raise OptionError(f"--neutral {neutral}: expected a frame index 0..{capture.n_frames - 1} "
-                              "(0-based, after --trim) or 'auto'")
-        capture = neutral_mod.set_neutral(capture, neutral, how="option")
+    # the neutral frame (or the named frames) is chosen on the capture's own frames (after
+    # trimming), then resampling carries it to the nearest new frame (the frames in its time span)
+    capture, rest_how = _set_neutral(capture, neutral, reports)
     if resample is not None:
         capture = timing.resample(capture, rate=resample, allow=frozenset(allow))
     if stabilize is not None:
@@ -119,6 +118,13 @@ def condition_capture(capture: Capture, steps: Conditioning = Conditioning()) ->
                                                  units=capture.units)
         if finding is not None:
             checked += plausibility.report([finding], allow=allow)
+    # the rest pose: averaged over the still stretch (found on the stabilised positions, so head
+    # motion does not count as motion) or over the named frames
+    capture, rest = neutral_mod.set_rest_pose(capture, capture.neutral_frames if rest_how == "range" else None,
+                                              how=rest_how)
+    reports["restPose"] = dict(rest.summary(), text=rest.text())
+    for message in rest.warnings:
+        log.warning("%s", message)
     if checked:
         reports["plausibility"] = checked
     # one time-code convention for every output: frame index from 0 unless --start-frame says
@@ -131,3 +137,23 @@ def condition_capture(capture: Capture, steps: Conditioning = Conditioning()) ->
                          startTimeCode=int(capture.start_frame))
     reports["timing"] = timing_report
     return capture, reports
+
+
+def _set_neutral(capture: Capture, neutral, reports: dict) -> tuple[Capture, str | None]:
+    """The neutral frame (or a named range of frames) set on ``capture``; returns it and how the
+    rest pose is to be labelled ("auto", "frame", "range", or None: the first frame)."""
+    from . import neutral as neutral_mod
+
+    spec = neutral_mod.parse_neutral(neutral)
+    neutral_mod.check_neutral_frames(spec, capture.n_frames, source=capture.source)
+    if spec == "auto":
+        index, report = neutral_mod.choose_neutral(capture)
+        reports["neutral"] = report.summary()
+        return neutral_mod.set_neutral(capture, index, how="auto"), "auto"
+    if isinstance(spec, tuple):
+        a, b = spec
+        capture = neutral_mod.set_neutral(capture, (a + b - 1) // 2, how="option")
+        return capture.replace(neutral_window=(a, b)), "range"
+    if spec is not None:
+        return neutral_mod.set_neutral(capture, spec, how="option"), "frame"
+    return capture, None

@@ -1,4 +1,12 @@
-"""Neutral frame: choose the frame of the neutral (rest) pose, and set it.
+"""Neutral frame and rest pose: choose the neutral frame, set it, and average the rest pose over
+the still stretch around it.
+
+:func:`set_rest_pose` is the step every displacement depends on: from the neutral frame (the
+first frame by default, the automatic choice below, a frame the user names) it finds the still
+stretch around it (:func:`usdface.capture.rest.still_stretch`), or takes the frames the user names,
+and records it on the capture, whose :attr:`~usdface.model.capture.Capture.neutral` is then the
+robust average over it. :func:`parse_neutral` and :func:`check_neutral_frames` are the
+``--neutral F|START:END|auto`` option's parser and range check.
 
 Readers set the neutral frame to 0 (takes usually start neutral). :func:`choose_neutral` finds it
 from the data instead: the calmest stretch of a take is often a *held expression* (in the AnimFace
@@ -28,7 +36,14 @@ import numpy as np
 from ..errors import MarkerError, OptionError
 from ..model.capture import Capture
 
-__all__ = ["choose_neutral", "set_neutral", "NeutralReport"]
+__all__ = ["choose_neutral", "set_neutral", "NeutralReport", "parse_neutral", "check_neutral_frames",
+           "set_rest_pose", "RestPoseReport", "NEUTRAL_MOTION_WARN_CM"]
+
+#: warn when the markers move more than this over the neutral stretch (RMS deviation from the rest
+#: pose, cm): twice the largest RMS found on the still stretches of the three AnimFace takes (0.25-0.6
+#: mm, at their first frame and at their automatic neutral) and of 0.3 mm white noise (0.52 mm); a
+#: third of the 3 mm RMS their smallest action shows (the Jaw take's small drop)
+NEUTRAL_MOTION_WARN_CM = 0.1
 
 
 @dataclass(frozen=True)
@@ -194,4 +209,220 @@ def set_neutral(capture: Capture, frame="auto", *, how: str | None = None, **cho
         if not 0 <= idx < capture.n_frames:
             raise OptionError(f"neutral frame index {idx} outside 0..{capture.n_frames - 1}")
         step = {"step": "set_neutral", "from": capture.neutral_frame, "to": idx, "method": how or "index"}
-    return capture.replace(step=step, neutral_frame=idx)
+    # a new neutral frame starts without a stretch (set_rest_pose finds one around it)
+    return capture.replace(step=step, neutral_frame=idx, neutral_window=None)
+
+
+# -- the rest pose ------------------------------------------------------------------------------
+
+_NEUTRAL_FORMS = "a frame index F, a range START:END (0-based frame indices, END exclusive) or auto"
+
+
+def parse_neutral(value):
+    """The value of ``--neutral``: None, ``"auto"``, a frame index or a ``(start, end)`` range.
+
+    Parameters
+    ----------
+    value : None, str, int or (int, int)
+        ``"auto"``, ``"F"``, ``"START:END"`` (END exclusive, like ``--trim``), an int or a pair.
+
+    Returns
+    -------
+    None, "auto", int or (int, int)
+
+    Raises
+    ------
+    OptionError
+        ``--neutral VALUE: expected a frame index F, a range START:END (0-based frame indices, END
+        exclusive) or auto`` for anything else (negative numbers, empty ranges, text).
+    """
+    def bad(extra=""):
+        return OptionError(f"--neutral {value}: expected {_NEUTRAL_FORMS}{extra}")
+
+    if value is None or value == "auto":
+        return value
+    if isinstance(value, (bool, np.bool_)):
+        raise bad()
+    if isinstance(value, (int, np.integer)):
+        if value < 0:
+            raise bad()
+        return int(value)
+    if isinstance(value, (tuple, list)):
+        parts = list(value)
+    elif isinstance(value, str):
+        parts = value.strip().split(":")
+    else:
+        raise bad()
+    if len(parts) not in (1, 2):
+        raise bad()
+    try:
+        nums = [int(p) if not isinstance(p, str) else int(p.strip()) for p in parts]
+    except (TypeError, ValueError):
+        raise bad() from None
+    if any(isinstance(p, str) and not p.strip().isdigit() for p in parts) or any(n < 0 for n in nums):
+        raise bad()
+    if len(nums) == 1:
+        return nums[0]
+    if nums[0] >= nums[1]:
+        raise bad(f"; START must be below END (END exclusive: {nums[0]}:{nums[0] + 1} is frame {nums[0]} alone)")
+    return (nums[0], nums[1])
+
+
+def check_neutral_frames(spec, n_frames: int, *, source: str = "") -> None:
+    """Raise OptionError (exit 2) naming the take's range when ``spec`` names frames outside it.
+
+    ``spec`` is :func:`parse_neutral`'s result; frames are 0-based indices after ``--trim``.
+    """
+    of = f" of {source}" if source else ""
+    if spec is None or spec == "auto":
+        return
+    if isinstance(spec, tuple):
+        a, b = spec
+        if not 0 <= a < b <= n_frames:
+            raise OptionError(f"--neutral {a}:{b}: frames {a}-{b - 1} are outside the take{of}, which has frames "
+                              f"0-{n_frames - 1} (expected 0 <= START < END <= {n_frames}; 0-based, END exclusive, "
+                              "after --trim)")
+        return
+    if not 0 <= spec < n_frames:
+        raise OptionError(f"--neutral {spec}: frame {spec} is outside the take{of}, which has frames 0-{n_frames - 1} "
+                          "(0-based, after --trim)")
+
+
+@dataclass(frozen=True)
+class RestPoseReport:
+    """Which frames the rest pose came from and how still the face was there.
+
+    Attributes
+    ----------
+    how : str
+        "first" (the capture's neutral frame, the first unless trimmed or set), "frame" (a frame the
+        user named), "auto" (:func:`choose_neutral`) or "range" (frames the user named).
+    frame : int
+        The neutral frame.
+    start, end : int
+        Frames ``start <= f < end`` averaged.
+    motion_rms, motion_max : float
+        RMS and largest deviation of the valid samples from the rest pose over those frames
+        (capture units): noise, wander and any motion.
+    units : str or None
+    to_cm : float
+        Capture units to cm (1.0 when the units are unknown: then read as cm).
+    noise : float
+        Measured white noise per coordinate (capture units).
+    threshold : float or None
+        Deviation (RMS over markers) up to which a frame counted as still; None for a named range.
+    warnings : tuple of str
+        Findings for the processor to log (the motion over the stretch above
+        :data:`NEUTRAL_MOTION_WARN_CM`).
+    """
+
+    how: str
+    frame: int
+    start: int
+    end: int
+    motion_rms: float
+    motion_max: float
+    units: str | None
+    to_cm: float
+    noise: float
+    threshold: float | None
+    warnings: tuple = ()
+
+    @property
+    def n_frames(self) -> int:
+        return self.end - self.start
+
+    def summary(self) -> dict:
+        return {"how": self.how, "frame": self.frame, "frames": [self.start, self.end - 1], "count": self.n_frames,
+                "motionRmsCm": round(self.motion_rms * self.to_cm, 5),
+                "motionMaxCm": round(self.motion_max * self.to_cm, 5),
+                "noiseCm": round(self.noise * self.to_cm, 6),
+                "thresholdCm": None if self.threshold is None else round(self.threshold * self.to_cm, 5),
+                "warnings": list(self.warnings)}
+
+    def text(self, warn_cm: float = NEUTRAL_MOTION_WARN_CM) -> str:
+        """One line for the command's output: the frames, why those, and the motion there."""
+        frames = f"frame {self.start}" if self.n_frames == 1 else f"frames {self.start}-{self.end - 1}"
+        why = {"first": f"the still stretch around the first frame, {self.frame}",
+               "frame": f"the still stretch around frame {self.frame}",
+               "auto": f"the still stretch around frame {self.frame}, chosen automatically",
+               "range": "the frames --neutral names"}.get(self.how, self.how)
+        return (f"rest pose: {frames} ({why}); markers move {self.motion_rms * self.to_cm:.3f} cm RMS there, "
+                f"{self.motion_max * self.to_cm:.3f} cm at most (warning above {warn_cm:g} cm RMS)")
+
+
+def set_rest_pose(capture: Capture, neutral=None, *, how: str | None = None,
+                  warn_cm: float = NEUTRAL_MOTION_WARN_CM):
+    """Average the rest pose over the still stretch around the neutral frame, or named frames.
+
+    Parameters
+    ----------
+    capture : Capture
+        Input capture (not modified); stabilise it first so that head motion is not counted as
+        motion (the rest pose is taken in the positions' space either way).
+    neutral : None, "auto", int, (int, int) or str
+        None: the capture's own neutral window when it has one of 2 frames or more (set before
+        resampling or stabilising, which carry it), else the stretch around the capture's neutral
+        frame (the first frame unless trimmed or set); ``"auto"``: around :func:`choose_neutral`'s
+        frame; F: around frame F; ``(START, END)`` or ``"START:END"``: exactly those frames (END
+        exclusive). Parsed by :func:`parse_neutral`, checked by :func:`check_neutral_frames`
+        (OptionError, exit 2).
+    how : str, optional
+        The report's and history's label for how the frame was chosen (e.g. "auto" when the caller
+        set the frame with :func:`choose_neutral` before stabilising); default from ``neutral``.
+    warn_cm : float
+        The report warns when the RMS motion over the frames exceeds this (cm).
+
+    Returns
+    -------
+    capture : Capture
+        ``neutral_frame`` (the seed frame; a range's middle frame) and ``neutral_window`` set;
+        history ``{"step": "rest_pose", "how": ..., "frames": [start, end - 1], "motionRmsCm": ...,
+        ...}``.
+    report : RestPoseReport
+    """
+    from . import rest as rest_mod
+
+    spec = parse_neutral(neutral)
+    check_neutral_frames(spec, capture.n_frames, source=capture.source)
+    capture.check_not_all_invalid()
+    threshold = None
+    noise = rest_mod.white_noise_level(capture.positions)
+    window = capture.neutral_window
+    if spec is None and window is not None and window[1] - window[0] > 1:
+        # a range named before resampling or stabilising, carried by them
+        label, frame, (a, b) = "range", capture.neutral_frame, window
+    elif isinstance(spec, tuple):
+        label, frame, (a, b) = "range", (spec[0] + spec[1] - 1) // 2, spec
+    else:
+        if spec == "auto":
+            label, frame = "auto", choose_neutral(capture)[0]
+        elif spec is None:
+            label, frame = "first", capture.neutral_frame
+        else:
+            label, frame = "frame", int(spec)
+        stretch = rest_mod.still_stretch(capture.positions, frame, rate=capture.rate)
+        a, b, threshold = stretch.start, stretch.end, stretch.threshold
+    how = how or label
+    out = capture.replace(neutral_frame=frame, neutral_window=(a, b))
+    rms, top = rest_mod.residual_motion(capture.positions[a:b], out.neutral)
+    to_cm = _to_cm(capture.units)
+    warnings = []
+    if rms * to_cm > warn_cm:
+        frames = f"frame {a}" if b - a == 1 else f"frames {a}-{b - 1}"
+        where = f"capture {capture.source}: " if capture.source else ""
+        warnings.append(f"{where}the face moves over the neutral stretch ({frames}): markers {rms * to_cm:.3f} cm RMS "
+                        f"from the rest pose ({top * to_cm:.3f} cm at most), more than {warn_cm:g} cm; name still "
+                        "frames with --neutral START:END")
+    report = RestPoseReport(how, int(frame), int(a), int(b), rms, top, capture.units, to_cm, noise, threshold,
+                            tuple(warnings))
+    step = {"step": "rest_pose", "how": how, "frame": int(frame), "frames": [int(a), int(b) - 1],
+            "motionRmsCm": report.summary()["motionRmsCm"], "motionMaxCm": report.summary()["motionMaxCm"]}
+    return out.replace(step=step), report
+
+
+def _to_cm(units) -> float:
+    """Capture units -> cm; 1.0 for unknown units and image pixels (read as they are)."""
+    from ..units import METERS_PER_UNIT, scale_between
+
+    return scale_between(units, "cm") if units in METERS_PER_UNIT else 1.0

@@ -8,7 +8,7 @@ from ..model.capture import Capture
 
 
 def marker_displacements(capture: Capture, names, transform: np.ndarray) -> np.ndarray:
-    """Displacement of each named marker from the neutral frame, in mesh space.
+    """Displacement of each named marker from the rest pose, in mesh space.
 
     Parameters
     ----------
@@ -23,12 +23,14 @@ def marker_displacements(capture: Capture, names, transform: np.ndarray) -> np.n
     Returns
     -------
     ndarray, shape (F, M, 3), float64
-        ``transform @ (p_f - p_neutral)`` per marker, mesh units; NaN where the sample is invalid.
+        ``transform @ (p_f - rest)`` per marker, mesh units, with ``rest`` the capture's rest pose
+        (:attr:`Capture.neutral`: averaged over the neutral window, or the neutral frame); NaN
+        where the sample is invalid.
 
     Raises
     ------
     MarkerError
-        A named marker is missing from the capture, or invalid at the neutral frame.
+        A named marker is missing from the capture, or has no valid sample in the neutral frames.
     """
     missing = [n for n in names if n not in capture.names]
     if missing:
@@ -38,12 +40,12 @@ def marker_displacements(capture: Capture, names, transform: np.ndarray) -> np.n
         )
     idx = np.array([capture.names.index(n) for n in names], dtype=np.int64)
     pos = capture.positions[:, idx]
-    neutral = pos[capture.neutral_frame]
+    neutral = capture.neutral[idx]
     bad = [names[j] for j in np.flatnonzero(~np.isfinite(neutral).all(axis=1))]
     if bad:
         raise MarkerError(
-            f"capture {capture.source}: marker(s) {list_names(bad)} invalid at the neutral frame "
-            f"{capture.neutral_frame}; fill gaps (--fill-gaps N) or choose another neutral frame (--neutral)"
+            f"capture {capture.source}: marker(s) {list_names(bad)} invalid at the {capture.describe_neutral()}; "
+            "fill gaps (--fill-gaps N) or choose other neutral frames (--neutral)"
         )
     return (pos - neutral[None]) @ np.asarray(transform, dtype=np.float64).T
 
@@ -55,7 +57,10 @@ def mesh_head_motion(capture: Capture, capture_to_mesh: np.ndarray) -> np.ndarra
     neutral frame and C the binding's capture-to-mesh similarity: the actor's head rotation about
     the (mapped) head, the translation scaled like the face, identity at the neutral frame (where
     the face is at its rest pose). The similarity's scale cancels in the rotation, so H_mesh is
-    rigid.
+    rigid. H(n), not the head pose averaged over the neutral stretch: the conditioning stabilises
+    on the neutral frame (H(n) = I) or on the rest pose of named frames, so the positions are
+    head-local in that pose; the binding maps them to the mesh and the shot places the markers with
+    C alone, and any other reference would move the face off its markers.
 
     Returns
     -------

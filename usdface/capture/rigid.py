@@ -97,7 +97,7 @@ def fit_rigid_batch(src, dst, *, weights=None, scale=False, min_points=3):
     xs = src_b - cs[:, None, :]
     xd = dst_b - cd[:, None, :]
     # covariance H = sum_k w_k xs_k xd_k^T;  H = U S Vt  ->  R = V D U^T
-    h = np.einsum("fk,fki,fkj->fij", wn, xs, xd)
+    h = np.matmul((xs * wn[:, :, None]).transpose(0, 2, 1), xd)  # batched 3 x K @ K x 3 (BLAS, not einsum)
     u, sv, vt = np.linalg.svd(h)
     d = np.sign(np.linalg.det(np.matmul(vt.transpose(0, 2, 1), u.transpose(0, 2, 1))))
     d[d == 0] = 1.0

@@ -203,7 +203,7 @@ def residual_rigid_motion(capture: Capture, markers, *, reference_frame=None) ->
     """
     idx = _indices(capture, markers, what="marker")
     ref_f = capture.neutral_frame if reference_frame is None else _frame_index(capture, reference_frame, "reference_frame")
-    ref = capture.positions[ref_f, idx]
+    ref = (capture.neutral if reference_frame is None else capture.positions[ref_f])[idx]
     bad = [capture.names[i] for i, ok in zip(idx, np.isfinite(ref).all(axis=1)) if not ok]
     if bad:
         raise MarkerError(f"marker(s) {list_names(bad)} invalid at reference frame {ref_f}")
@@ -249,9 +249,10 @@ def _select(positions, reference, candidates, n_auto):
     return np.sort(keep), scores
 
 
-def _candidates(capture, ref_f):
+def _candidates(capture, ref):
+    """Markers valid in the reference positions ``ref`` (M, 3) and in enough frames."""
     valid = capture.valid
-    ok = valid[ref_f] & (valid.mean(axis=0) >= MIN_VALID_FRACTION)
+    ok = np.isfinite(ref).all(axis=1) & (valid.mean(axis=0) >= MIN_VALID_FRACTION)
     return np.flatnonzero(ok)
 
 
@@ -264,7 +265,7 @@ def rank_rigid_markers(capture: Capture, *, n_auto: int = 8, reference="neutral"
     n_auto : int
         Size of the final stable set of the selection the scores come from.
     reference : "neutral" or int
-        Reference frame (index).
+        Reference: the capture's rest pose, or a frame index.
 
     Returns
     -------
@@ -273,10 +274,10 @@ def rank_rigid_markers(capture: Capture, *, n_auto: int = 8, reference="neutral"
         sorted by score: RMS distance (capture units) from the reference position after
         stabilisation with the automatically selected set.
     """
-    ref_f = capture.neutral_frame if reference == "neutral" else _frame_index(capture, reference, "reference")
-    cands = _candidates(capture, ref_f)
+    ref = capture.neutral if reference == "neutral" else capture.positions[_frame_index(capture, reference, "reference")]
+    cands = _candidates(capture, ref)
     n_auto = _check_n_auto(n_auto, len(cands), capture)
-    _, scores = _select(capture.positions, capture.positions[ref_f], cands, n_auto)
+    _, scores = _select(capture.positions, ref, cands, n_auto)
     order = sorted(cands, key=lambda i: scores[i])
     return [(capture.names[i], float(scores[i])) for i in order]
 
@@ -325,7 +326,9 @@ def stabilize(capture: Capture, *, markers=None, n_auto: int = 8, reference="neu
     n_auto : int
         Number of markers chosen automatically (>= 3); ignored when ``markers`` is given.
     reference : "neutral" or int
-        Frame index whose positions define the head-local frame; default the neutral frame.
+        Frame index whose positions define the head-local frame; default "neutral": the capture's
+        rest pose (:attr:`Capture.neutral`: the neutral frame, or the average over the neutral
+        window when one is set).
     holdout : sequence of str, optional
         Markers (not in the fit) on which the report measures the residual rigid motion before and
         after. Default: the ``max(3, len(markers) // 2)`` non-fit markers with the lowest
@@ -350,13 +353,16 @@ def stabilize(capture: Capture, *, markers=None, n_auto: int = 8, reference="neu
     """
     pos = capture.positions
     if reference == "neutral":
+        # the rest pose (averaged over the neutral stretch when one is set): the head-local
+        # frame is the rest pose's, and a noisy single frame does not tilt it
         ref_f = capture.neutral_frame
+        ref = capture.neutral
     else:
         ref_f = _frame_index(capture, reference, "reference")
-    ref = pos[ref_f]
+        ref = pos[ref_f]
 
     if markers is None:
-        cands = _candidates(capture, ref_f)
+        cands = _candidates(capture, ref)
         n = _check_n_auto(n_auto, len(cands), capture)
         keep, _ = _select(pos, ref, cands, n)
         auto = True

@@ -46,7 +46,8 @@ def trim(capture: Capture, *, start: int | None = None, end: int | None = None) 
     -------
     Capture
         ``end - start`` frames; time codes preserved (``start_frame`` grows by ``start``);
-        ``neutral_frame`` and ``head_motion`` follow; history ``{"step": "trim", ...}``.
+        ``neutral_frame``, ``neutral_window`` (clipped to the kept frames) and ``head_motion``
+        follow; history ``{"step": "trim", ...}``.
 
     Raises
     ------
@@ -72,12 +73,16 @@ def trim(capture: Capture, *, start: int | None = None, end: int | None = None) 
         )
     hm = None if capture.head_motion is None else capture.head_motion[a:b].copy()
     step = {"step": "trim", "start": a, "end": b, "start_frame": capture.start_frame + a}
+    window = None
+    if capture.neutral_window is not None:  # the rest pose keeps the stretch's frames that remain
+        window = (max(capture.neutral_window[0], a) - a, min(capture.neutral_window[1], b) - a)
     return capture.replace(
         step=step,
         positions=capture.positions[a:b].copy(),
         head_motion=hm,
         start_frame=capture.start_frame + a,
         neutral_frame=nf - a,
+        neutral_window=window,
     )
 
 
@@ -201,7 +206,8 @@ def resample(capture: Capture, *, rate: float, method: str = "cubic", allow=froz
         span ``[start_frame, start_frame + F - 1] / old rate``; ``start_frame`` is the first such
         ``k``. A new sample is valid only if it lies within a run of valid old samples (between
         two valid neighbours, or exactly on a valid sample): invalid spans stay invalid and are
-        never bridged. The neutral frame becomes the new frame nearest in time to the old one.
+        never bridged. The neutral frame becomes the new frame nearest in time to the old one; a
+        neutral window, the new frames within its time span.
         History ``{"step": "resample", "from_rate": ..., "rate": ..., "method": ...}``.
     """
     if method not in RESAMPLE_METHODS:
@@ -230,6 +236,13 @@ def resample(capture: Capture, *, rate: float, method: str = "cubic", allow=froz
     head = None if capture.head_motion is None else _resample_motion(capture.head_motion, u, method)
     neutral_u = float(capture.neutral_frame)
     neutral = int(np.argmin(np.abs(u - neutral_u)))
+    window = None
+    if capture.neutral_window is not None:  # the new frames inside the stretch's time span
+        lo, hi = capture.neutral_window
+        inside = np.flatnonzero((u >= lo - 1e-9) & (u <= hi - 1 + 1e-9))
+        first = int(inside[0]) if inside.size else neutral
+        last = int(inside[-1]) if inside.size else neutral
+        window = (min(first, neutral), max(last, neutral) + 1)
     step = {
         "step": "resample",
         "from_rate": float(capture.rate),
@@ -240,4 +253,4 @@ def resample(capture: Capture, *, rate: float, method: str = "cubic", allow=froz
         "frames": int(codes.size),
     }
     return capture.replace(step=step, positions=pos, head_motion=head, rate=rate, start_frame=int(k0),
-                           neutral_frame=neutral)
+                           neutral_frame=neutral, neutral_window=window)

@@ -5,8 +5,8 @@ Paper (seed 000) Sec. 4.2 and 5: Euclidean (Eq. 6), geodesic mesh-based (Eq. 7) 
 matrices for the RBF transfer. All lengths are in mesh units.
 
 - :func:`euclidean_distances`, :func:`euclidean_at_sources` (Eq. 6)
-- :class:`GeodesicSolver` with back-ends ``"graph"`` (shortest edge paths, Eq. 7; the paper's,
-  the default), ``"fmm"`` (fast marching with exact point-source updates: 0.03-0.34 % from exact),
+- :class:`GeodesicSolver` with back-ends ``"graph"`` (shortest edge paths, Eq. 7; the paper's),
+  ``"fmm"`` (fast marching with exact point-source updates: 0.03-0.34 % from exact; the default),
   ``"heat"`` (potpourri3d heat method) and ``"exact"`` (pygeodesic MMP); one-call
   :func:`geodesic_distances`
 - :func:`hybrid_distances`, :func:`hybrid_weights` (Eq. 8), geodesics only where ``w > 0.6``
@@ -19,7 +19,8 @@ from ..lazy import lazy_exports
 _EXPORTS = {
     "DistanceWarning": "euclidean", "available_memory": "euclidean", "check_matrix_memory": "euclidean",
     "euclidean_at_sources": "euclidean", "euclidean_distances": "euclidean", "pairwise_euclidean": "euclidean",
-    "source_points": "euclidean",     "BACKENDS": "methods", "DEFAULT_BACKEND": "methods", "GEODESIC_ROLES": "methods", "METHODS": "methods",
+    "source_points": "euclidean", "BACKENDS": "methods", "DEFAULT_BACKEND": "methods", "PAPER_BACKEND": "methods",
+    "default_backend": "methods", "GEODESIC_ROLES": "methods", "METHODS": "methods",
     "DistanceReport": "geodesic", "GeodesicResult": "geodesic", "GeodesicSolver": "geodesic",
     "auto_t_coef": "geodesic", "geodesic_distances": "geodesic", "HybridResult": "hybrid",
     "hybrid_distances": "hybrid", "hybrid_weights": "hybrid", "region_mask": "hybrid",
@@ -29,6 +30,8 @@ __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 __all__ = [
     "BACKENDS",
     "DEFAULT_BACKEND",
+    "PAPER_BACKEND",
+    "default_backend",
     "GEODESIC_ROLES",
     "METHODS",
     "DistanceReport",

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import MeshError
 from ..units import scale_between
-from .methods import GEODESIC_ROLES
+from .methods import DEFAULT_BACKEND, GEODESIC_ROLES
 
 __all__ = ["DistanceMatrix", "DistanceParameters", "compute_distance_matrix"]
 
@@ -52,7 +52,7 @@ class DistanceParameters:
     """
 
     method: str = "hybrid"
-    backend: str = "graph"
+    backend: str = DEFAULT_BACKEND
     components: str = "error"
     t_coef: object = "auto"
     pin_border: str = "upper"

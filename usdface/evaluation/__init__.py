@@ -3,10 +3,15 @@
 - :mod:`usdface.evaluation.quality`: transfer ground-truth expression shapes through their marker
   displacements with each distance method / RBF mode / pinned-border variant and measure the
   vertex errors per face region; the paper's claim (Euclidean artifacts around the mouth and eyes)
-  made measurable.
+  made measurable. Its parts: :mod:`~usdface.evaluation.configs` (what a row transfers with),
+  :mod:`~usdface.evaluation.regions` (error regions, pinned vertices), :mod:`~usdface.evaluation.setup`
+  (distances and fitted transfers), :mod:`~usdface.evaluation.results` (errors, the report) and
+  :mod:`~usdface.evaluation.tables` (summaries, markdown), :mod:`~usdface.evaluation.metrics` (issue
+  19's mesh error and jaw-drop mouth error, hold-out splits).
 """
 from __future__ import annotations
 
+from .metrics import HeldOutSplit, jaw_drop_mouth_error, mesh_error, read_split
 from .quality import (
     AUTHORS_WIDTH_CM,
     MIN_SHAPE_DISPLACEMENT_CM,
@@ -35,6 +40,7 @@ __all__ = [
     "REGION_NAMES",
     "REGION_RADIUS_CM",
     "ConfigResult",
+    "HeldOutSplit",
     "EvaluationRegions",
     "QualityReport",
     "TransferSetup",
@@ -44,8 +50,11 @@ __all__ = [
     "evaluate",
     "evaluation_regions",
     "format_report",
+    "jaw_drop_mouth_error",
+    "mesh_error",
     "marker_displacements",
     "parse_configs",
+    "read_split",
     "select_shapes",
     "shape_errors",
     "summary_rows",

@@ -47,8 +47,8 @@ def neutral_markers(capture: Capture) -> np.ndarray:
     if bad.any():
         names = [n for n, b in zip(capture.names, bad) if b]
         raise MarkerError(
-            f"capture{_capture_where(capture)}: neutral frame {capture.neutral_frame} has no valid position "
-            f"for marker(s) {list_names(names)}; choose another neutral frame or fill the gaps first"
+            f"capture{_capture_where(capture)}: {capture.describe_neutral()} {'has' if capture.neutral_frames[1] - capture.neutral_frames[0] == 1 else 'have'} "
+            f"no valid position for marker(s) {list_names(names)}; choose other neutral frames or fill the gaps first"
         )
     return neutral
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -32,7 +33,8 @@ class Capture:
     start_frame : int
         Time code of the first frame (time code = frame index at the capture rate).
     neutral_frame : int
-        Index (0-based, into the F frames) of the neutral pose.
+        Index (0-based, into the F frames) of the neutral frame: the frame the user or the
+        automatic choice named, always inside ``neutral_window``.
     source : str
         The file the capture came from (as given, for provenance).
     head_motion : ndarray, shape (F, 4, 4), float64, optional
@@ -40,6 +42,14 @@ class Capture:
         (world = head_motion[f] @ [local, 1]). None when the capture was not stabilised.
     history : tuple of dict
         Conditioning steps applied, in order, each a JSON-serialisable dict with a ``"step"`` key.
+    neutral_window : (int, int), optional
+        Frames ``start <= f < end`` the rest pose is averaged over (:mod:`usdface.capture.rest`;
+        set by :func:`usdface.capture.neutral.set_rest_pose`). None: the neutral frame alone
+        (captures read from files, and capture layers written by usdface 0.2).
+
+    The rest pose (:attr:`neutral`) is computed from ``positions`` over the window when first
+    asked for, so it always lives in the positions' space (head-local once stabilised) and follows
+    every step that changes the positions.
     """
 
     names: tuple[str, ...]
@@ -51,6 +61,7 @@ class Capture:
     source: str = ""
     head_motion: np.ndarray | None = None
     history: tuple[dict, ...] = field(default_factory=tuple)
+    neutral_window: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         names = tuple(str(n) for n in self.names)
@@ -79,6 +90,9 @@ class Capture:
             raise MarkerError(
                 f"capture{where}: neutral frame index {self.neutral_frame} outside 0..{pos.shape[0] - 1}"
             )
+        if self.neutral_window is not None:
+            object.__setattr__(self, "neutral_window", _check_window(self.neutral_window, self.neutral_frame,
+                                                                     pos.shape[0], where))
         if self.head_motion is not None:
             hm = np.asarray(self.head_motion, dtype=np.float64)
             if hm.shape != (pos.shape[0], 4, 4):
@@ -106,9 +120,34 @@ class Capture:
         return self.start_frame + np.arange(self.n_frames, dtype=np.float64)
 
     @property
+    def neutral_frames(self) -> tuple[int, int]:
+        """``(start, end)``: the frames ``start <= f < end`` the rest pose comes from."""
+        if self.neutral_window is None:
+            return (self.neutral_frame, self.neutral_frame + 1)
+        return self.neutral_window
+
+    @cached_property
     def neutral(self) -> np.ndarray:
-        """(M, 3) positions at the neutral frame (NaN where invalid there)."""
-        return self.positions[self.neutral_frame]
+        """(M, 3) read-only rest pose: every displacement is measured from it.
+
+        The positions at the neutral frame when there is no window (NaN where invalid there);
+        otherwise each marker's robust average over its valid samples in the window
+        (:func:`usdface.capture.rest.robust_rest_pose`; NaN for a marker with none).
+        """
+        a, b = self.neutral_frames
+        if b - a == 1:
+            rest = self.positions[a].copy()
+        else:
+            from .rest import robust_rest_pose
+
+            rest = robust_rest_pose(self.positions[a:b])[0]
+        rest.flags.writeable = False
+        return rest
+
+    def describe_neutral(self) -> str:
+        """'neutral frame 12' or 'neutral frames 0-17' (inclusive), for messages."""
+        a, b = self.neutral_frames
+        return f"neutral frame {a}" if b - a == 1 else f"neutral frames {a}-{b - 1}"
 
     def index(self, name: str) -> int:
         """Index of marker ``name``; MarkerError naming the known markers if absent."""
@@ -161,3 +200,18 @@ def hold_invalid(positions: np.ndarray, valid: np.ndarray) -> np.ndarray:
     first = valid.argmax(axis=0)
     idx = np.where(idx < 0, first[None, :], idx)
     return np.take_along_axis(positions, idx[:, :, None], axis=0)
+
+
+def _check_window(window, neutral_frame: int, n_frames: int, where: str) -> tuple[int, int]:
+    """``(start, end)`` as ints with ``0 <= start <= neutral_frame < end <= n_frames``."""
+    try:
+        a, b = (int(v) for v in window)
+        ok = all(float(v) == int(v) for v in window)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise MarkerError(f"capture{where}: neutral window must be two frame indices (start, end); got {window!r}")
+    if not 0 <= a <= neutral_frame < b <= n_frames:
+        raise MarkerError(f"capture{where}: neutral window [{a}, {b}) must hold the neutral frame {neutral_frame} "
+                          f"and lie within 0..{n_frames}")
+    return (a, b)

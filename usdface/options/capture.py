@@ -8,7 +8,7 @@ from typing import Any
 from ..errors import OptionError
 from ..units import METERS_PER_UNIT
 from .fields import Options, option
-from .values import boolean, integer, number, pair, positive_float, positive_int, shown
+from .values import boolean, integer, pair, positive_float, positive_int, shown
 
 UNITS = tuple(METERS_PER_UNIT)
 
@@ -38,12 +38,11 @@ def trim_value(value, flag):
 
 
 def neutral_value(value, flag):
-    if value == "auto":
-        return "auto"
-    n = number(value, flag, kind=int, what="a frame index (0-based, after --trim) or 'auto'")
-    if n < 0:
-        raise OptionError(f"{flag} {shown(value)}: expected a frame index >= 0 or 'auto'")
-    return n
+    """--neutral: "auto", a frame index F or a range START:END (a pair), as
+    :func:`usdface.capture.neutral.parse_neutral` reads it."""
+    from ..capture.neutral import parse_neutral
+
+    return parse_neutral(value)
 
 
 def allow_value(value, flag):
@@ -98,9 +97,12 @@ class CaptureOptions(PlausibilityOptions):
                                      help="time code of the first frame after trimming (default 0)")
     resample: float | None = option(None, flag="--resample", coerce=positive_float, metavar="HZ",
                                     group="capture reading and conditioning", help="resample to this rate")
-    neutral: Any = option(None, flag="--neutral", coerce=neutral_value, metavar="FRAME|auto",
+    neutral: Any = option(None, flag="--neutral", coerce=neutral_value, metavar="F|START:END|auto",
                           group="capture reading and conditioning",
-                          help="neutral frame (0-based index after trimming) or 'auto' (default: the first frame)")
+                          help="where the rest pose every displacement is measured from comes from: the still "
+                               "stretch around frame F, around the frame 'auto' chooses, or exactly frames "
+                               "START..END-1 (0-based indices after --trim; default: the still stretch around the "
+                               "first frame)")
     keep_zeros: bool = option(False, flag="--keep-zeros", coerce=boolean, group="plausibility checks",
                               help="C3D: keep samples at exactly (0, 0, 0) as positions (default: they are gaps)")
     drop_outliers: bool = option(False, flag="--drop-outliers", coerce=boolean, group="plausibility checks",

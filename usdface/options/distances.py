@@ -15,7 +15,8 @@ class DistanceOptions(Options):
     method: str = option("hybrid", flag="--method", choices=METHODS, group="distances",
                          help="Euclidean (Eq. 6), geodesic (Eq. 7) or hybrid (Eq. 8)")
     backend: str = option(DEFAULT_BACKEND, flag="--backend", choices=BACKENDS, group="distances",
-                          help="geodesic back-end: shortest edge paths (the paper's, default), fmm (fast marching: accurate), heat method, exact polyhedral (small meshes)")
+                          help="geodesic back-end: fmm (fast marching: accurate, the default), graph (shortest edge "
+                               "paths, the paper's: 8-15% long), heat method, exact polyhedral (small meshes)")
     region_radius: float = option(1.0, flag="--region-radius", coerce=nonnegative_float, metavar="CM",
                                   group="distances",
                                   help="hybrid: geodesic regions = vertices within this distance of the mouth/eye "

@@ -47,10 +47,12 @@ class EvaluateOptions(Options):
                                      "three")
     widths: tuple | None = option(None, flag="--widths", coerce=names_value, nargs="+", metavar="W",
                                   group="transfers",
-                                  help="kernel widths: 'default' (1.1 x the Euclidean median marker spacing, as "
-                                       "`usdface run`) and/or cm values; default: default 2")
-    backend: str = option("graph", flag="--backend", choices=("graph", "heat", "exact"), group="transfers",
-                          help="geodesic back-end")
+                                  help="kernel widths: 'default' (the pipeline's rule: per marker, 0.7 x its mean "
+                                       "distance to its 3 nearest markers in the row's metric; 1.1 x the Euclidean "
+                                       "median marker spacing in paper mode), '1.1h' (that paper rule in every mode, "
+                                       "usdface 0.2's default) and/or cm values; default: default 2")
+    backend: str | None = option(None, flag="--backend", choices=("graph", "fmm", "heat", "exact"), group="transfers",
+                                 help="geodesic back-end (default: the pipeline's, fmm; graph for paper-mode rows)")
     heat: bool = option(False, flag="--heat", coerce=boolean, group="transfers",
                         help="add a geodesic/heat interpolate row")
     thin_plate: bool = option(False, flag="--thin-plate", coerce=boolean, group="transfers",

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import OptionError
+from ..distance.methods import BACKENDS, default_backend
 from .distances import DistanceOptions
 from .fields import Options, option
 from .skel import SkelOptions
@@ -152,8 +153,14 @@ class RunOptions(SolveOptions, DistanceOptions, TransferOptions, SkelOptions, Vi
     head_motion: bool = option(True, flag="--no-head-motion", coerce=boolean, group="deliverables",
                                help="drop the head motion removed by stabilisation (by default every deliverable "
                                     "carries it as a time-sampled transform on the face's root prim /Face)")
+    backend: str | None = option(None, flag="--backend", choices=BACKENDS, group="distances",
+                                 help="geodesic back-end: fmm (fast marching: accurate; the default), graph (shortest "
+                                      "edge paths, the paper's: 8-15% long; the default with --rbf paper), heat "
+                                      "method, exact polyhedral (small meshes)")
 
     def validate(self) -> None:
+        if self.backend is None:  # the RBF mode's: the paper's edge paths for Eqs. 1-5, fast marching otherwise
+            object.__setattr__(self, "backend", default_backend(self.rbf))
         super().validate()
         if self.layout is not None and self.auto is True:
             raise OptionError("--layout and --auto: give one of them (a layout places the markers; --auto aligns "

@@ -4,13 +4,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..blendshape.parameters import (DEFAULT_EXCLUDE, DEFAULT_MAX_ITERATIONS, DEFAULT_SMOOTHING_HZ, DEFAULT_SPARSITY,
-                                     DEFAULT_SYMMETRY, DEFAULT_TOLERANCE)
+from ..blendshape.parameters import (DEFAULT_EXCLUDE, DEFAULT_MAX_ITERATIONS, DEFAULT_POSE_REFIT_ROUNDS,
+                                     DEFAULT_SMOOTHING_HZ, DEFAULT_SPARSITY, DEFAULT_SYMMETRY, DEFAULT_TOLERANCE)
 from ..errors import OptionError
 from .binding import BindOptions
 from .capture import UNITS, CaptureOptions, stabilize_value
 from .fields import Options, option
-from .values import boolean, nonnegative_float, path, positive_float, positive_int, shown
+from .values import boolean, nonnegative_float, number, path, positive_float, positive_int, shown
 
 
 def patterns_value(value, flag):
@@ -22,6 +22,14 @@ def patterns_value(value, flag):
     if not isinstance(value, (list, tuple)):
         raise OptionError(f"{flag} {shown(value)}: expected comma-separated shape names or globs, or 'none'")
     return tuple(str(v).strip() for v in value if str(v).strip())
+
+
+def rounds_value(value, flag):
+    """A number of rounds: a whole number >= 0 (0: off)."""
+    n = number(value, flag, kind=int, what="a whole number >= 0")
+    if n < 0:
+        raise OptionError(f"{flag} {shown(value)}: expected a whole number >= 0")
+    return n
 
 
 @dataclass(frozen=True)
@@ -51,6 +59,10 @@ class BlendshapeOptions(Options):
                                  group="blend-shape solve", help="ADMM iterations at most")
     tolerance: float = option(DEFAULT_TOLERANCE, flag="--tolerance", coerce=positive_float, metavar="CM",
                               group="blend-shape solve", help="ADMM stopping tolerance (cm)")
+    pose_refit: int = option(DEFAULT_POSE_REFIT_ROUNDS, flag="--pose-refit", coerce=rounds_value, metavar="N",
+                             group="blend-shape solve",
+                             help="rounds of correcting the head stabilisation and the rest pose with what the rig "
+                                  "explains, solving again after each (0: off; the solve of usdface 0.2)")
     fps: float | None = option(None, flag="--fps", coerce=positive_float, metavar="FPS", group="curves",
                                help="deliver the curves at this rate (24, 25, 30...) instead of the capture's")
     key_tolerance: float | None = option(None, flag="--key-tolerance", coerce=nonnegative_float, metavar="W",
@@ -93,7 +105,8 @@ class SolveOptions(CaptureOptions, BindOptions, BlendshapeOptions):
 
     def take_parameters(self):
         """How a take is solved (:class:`usdface.blendshape.parameters.TakeParameters`): the solver's
-        settings, the shapes held at 0 and whether the head motion is kept."""
+        settings, the shapes held at 0, whether the head motion is kept and the pose refit's rounds."""
         from ..blendshape.parameters import TakeParameters
 
-        return TakeParameters(solver=self.solver_parameters(), exclude=self.exclude, head_motion=self.head_motion)
+        return TakeParameters(solver=self.solver_parameters(), exclude=self.exclude, head_motion=self.head_motion,
+                              pose_refit=self.pose_refit)

@@ -36,6 +36,13 @@ def stiffness_value(value, flag):
     raise OptionError(f"{flag} {shown(value)}: expected a width in mesh units or a JSON file {{marker: width}}")
 
 
+def polynomial_value(value, flag):
+    """--polynomial / --no-polynomial: True, False, or "auto" (the kernels that need it)."""
+    if value == "auto":
+        return "auto"
+    return boolean(value, flag)
+
+
 @dataclass(frozen=True)
 class TransferOptions(Options):
     """The RBF transfer (`transfer`, `skel`, `run`)."""
@@ -45,14 +52,19 @@ class TransferOptions(Options):
     kernel: str = option("gaussian", flag="--kernel", choices=tuple(KERNELS), group="transfer", help="radial basis function")
     stiffness: Any = option(None, flag="--stiffness", coerce=stiffness_value, metavar="WIDTH|JSON", group="transfer",
                             help="kernel width in mesh units for every marker, or a JSON file {marker: width} "
-                                 "(default: 1.1 x the median nearest-marker distance, about 2 cm on a face)")
+                                 "(default: per marker, 0.7 x its mean distance to its 3 nearest markers in the "
+                                 "transfer's distances, 1.2-3 cm on a face; --rbf paper: 1.1 x the median "
+                                 "nearest-marker distance, about 2 cm)")
     regularization: Any = option("auto", flag="--regularization", coerce=regularization_value, metavar="LAMBDA|auto",
                                  group="transfer",
                                  help="ridge term added to the kernel matrix (interpolate mode). auto: exact "
                                       "interpolation unless it amplifies marker motion more than 25x (geodesic "
                                       "kernels can), then the lambda with the least amplification")
-    polynomial: bool = option(False, flag="--polynomial", coerce=boolean, group="transfer",
-                              help="add a linear polynomial term (interpolate mode)")
+    polynomial: Any = option("auto", flag="--polynomial", coerce=polynomial_value, action="store_const", const=True,
+                             negate=("--no-polynomial", False), group="transfer",
+                             help="add a linear polynomial term (interpolate mode); by default exactly the kernels "
+                                  "that need it get it (multiquadric, thin-plate spline), --no-polynomial turns "
+                                  "it off")
     method: str | None = option(None, flag="--method", choices=METHODS, group="transfer",
                                 help="which distance matrix of the analysis layer (default: its only one)")
     head_motion: bool = option(True, flag="--no-head-motion", coerce=boolean, group="deliverables",
@@ -68,6 +80,11 @@ class TransferOptions(Options):
 
     def validate(self) -> None:
         super().validate()
-        if self.rbf == "paper" and (self.polynomial or self.regularization not in ("auto", 0.0)):
+        if self.rbf == "paper" and (self.polynomial is True or self.regularization not in ("auto", 0.0)):
             raise OptionError("--polynomial and --regularization apply to --rbf interpolate only "
                               "(paper mode solves nothing)")
+        if self.method is not None:  # else the analysis layer's method, checked by the transfer
+            from ..rbf.soundness import check_kernel_method, resolve_polynomial
+
+            polynomial = self.rbf == "interpolate" and resolve_polynomial(self.kernel, self.polynomial)
+            check_kernel_method(self.kernel, self.method, polynomial=polynomial, mode=self.rbf)

@@ -283,6 +283,7 @@ def _text(summary: dict, job: _Job) -> list[str]:
         f"{summary['vertices']} vertices, {summary['markers']} markers)",
         f"  capture: {cap['markers']} markers, {cap['invalidSamples']} invalid samples, "
         f"stabilised: {'yes' if cap['stabilized'] else 'no'}",
+        f"  {cap['reports']['restPose']['text']}",
         f"  binding: {b['method']}, {'fit ' if b['method'] == 'layout' else ''}residual median "
         f"{b['residualMedian']:.3f} max {b['residualMax']:.3f} {b['units']}",
         f"  distances: {o.method}{'/' + o.backend if o.method != 'euclidean' else ''} in "

@@ -141,6 +141,7 @@ def _import_capture(input, out, options, fill_gaps) -> dict:
         n = reports["neutral"]
         text.append(f"  neutral: frame {n['frame']} chosen automatically (calm and nearest the median pose; "
                     f"the calmest window alone was frame {n['calmest_frame']})")
+    text.append(f"  {reports['restPose']['text']}")
     for s in reports.get("swaps", []):
         text.append(f"  possible marker swap: {s}")
     if reports.get("plausibility"):

@@ -81,7 +81,7 @@ def skel(mesh, capture, binding, analysis, *, options: SkelLayerOptions, output)
               "headMotion": hm is not None, "framesResolved": inputs.effective_info["framesResolved"],
               "jointNameMapping": rig.name_mapping}
     recorded = {"rbf": params.rbf, "kernel": params.kernel, "stiffness": params.stiffness,
-                "regularization": inputs.info["regularization"], "polynomial": params.polynomial,
+                "regularization": inputs.info["regularization"], "polynomial": inputs.info["polynomial"],
                 "method": inputs.dm.method, "all_invalid": params.all_invalid, "skin_weights": skin.mode,
                 "max_influences": chosen.k, "skin_fit": options.skin_fit, "corrective_shapes": skin.corrective_shapes,
                 "weight_fit": options.weight_fit, "head_motion": hm is not None}

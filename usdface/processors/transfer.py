@@ -20,6 +20,9 @@ CHUNK_BYTES = 128 << 20
 #: output buffers cycled by the transfer: the chunk being written, the one computed ahead
 #: (write_animation_layer's prefetch) and the next (fresh arrays per chunk cost their page faults)
 PREFETCH_BUFFERS = 3
+#: how the printed line names the default width rules (:mod:`usdface.rbf.stiffness`)
+_WIDTH_RULES = {"local": "median of the per-marker widths", "paper": "1.1 x the median marker spacing",
+                "uniform": "one width for every centre"}
 
 
 def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: TransferOptions, output) -> Result:
@@ -37,7 +40,7 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
     from ..usd.inputs import load_transfer_inputs
 
     params = options.parameters()
-    rbf, kernel, stiffness, polynomial = params.rbf, params.kernel, params.stiffness, params.polynomial
+    rbf, kernel, stiffness = params.rbf, params.kernel, params.stiffness
     method, head_motion, all_invalid = options.method, options.head_motion, params.all_invalid
 
     out = check_output_path(output, inputs={"--mesh": mesh_path, "--capture": capture_path,
@@ -46,12 +49,14 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
                                                       method=method)
     disp = marker_displacements(capture, binding.names, binding.displacement_transform())
     t0 = time.perf_counter()
-    solver, info = fit_transfer(mesh, binding, dm, params)
+    from ..usd.layers import describe
+
+    solver, info = fit_transfer(mesh, binding, dm, params, method_source=describe(analysis_path))
     regularization, choice = info["regularization"], info["choice"]
     amp, miss, advice, settings = info["amplification"], info["markerResidual"], info["advice"], info["settings"]
     motion = mesh_head_motion(capture, binding.capture_to_mesh) if head_motion else None
     recorded = {"rbf": rbf, "kernel": kernel, "stiffness": stiffness, "regularization": regularization,
-               "polynomial": polynomial, "method": dm.method, "all_invalid": all_invalid,
+               "polynomial": info["polynomial"], "method": dm.method, "all_invalid": all_invalid,
                "head_motion": motion is not None}
     prov = provenance("transfer", options=recorded, inputs={"mesh": mesh_path, "capture": capture_path,
                                                            "binding": binding_path, "analysis": analysis_path},
@@ -79,7 +84,8 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
         "constraintCentres": int(dm.constraint_vertices.size), "mode": rbf, "kernel": solver.kernel,
         "distanceMethod": dm.method, "conditionNumber": solver.condition_number, "advice": advice,
         "widthMedian": float(np.median(solver.widths[: binding.n_markers])), "units": mesh.units,
-        "regularization": regularization, "amplification": amp, "markerResidual": miss,
+        "regularization": regularization, "polynomial": info["polynomial"], "widthRule": info["widthRule"],
+        "amplification": amp, "markerResidual": miss,
         "exactAmplification": None if choice is None else choice.exact_amplification,
         "framesWithInvalidMarkers": invalid_frames, "validityPatterns": cache, "seconds": round(seconds, 3),
         "headMotion": motion is not None,
@@ -89,8 +95,17 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
                                               f"markers reproduced within {100 * miss:.0f}%"
                                               if choice is not None and choice.regularized else "")
     text = [
-        f"wrote {out}: {capture.n_frames} frames x {mesh.n_points} points ({rbf} {solver.kernel} on {dm.method} "
-        f"distances, width {summary['widthMedian']:.3g} {mesh.units}{cond}) in {seconds:.2f} s",
+        f"wrote {out}: {capture.n_frames} frames x {mesh.n_points} points ({rbf} {solver.kernel}"
+        f"{' + linear polynomial' if info['polynomial'] else ''} on {dm.method} distances, width "
+        f"{summary['widthMedian']:.3g} {mesh.units} ({_width_rule(stiffness, info['widthRule'])}){cond}) "
+        f"in {seconds:.2f} s",
     ] + ([f"  {invalid_frames} frames re-solved with their valid markers"] if invalid_frames else []) \
       + ([f"  advice: {advice}"] if advice else [])
     return Result(layers={"output": out}, summary=summary, text=text)
+
+
+def _width_rule(stiffness, rule: str) -> str:
+    """Where the printed width comes from: --stiffness, or the default rule's name."""
+    if stiffness is not None and not isinstance(stiffness, dict):
+        return "--stiffness"
+    return _WIDTH_RULES.get(rule, rule) + (" and --stiffness" if stiffness is not None else "")

@@ -22,9 +22,11 @@ name                      phi(r), r = d / s      phi(0)     phi(+inf)
 
 Gaussian and inverse multiquadric are positive definite (the interpolation matrix of distinct
 centres is non-singular for Euclidean distances); multiquadric is conditionally positive definite
-of order 1, thin-plate spline and cubic of order 2: with them, prefer the linear polynomial term of
-:class:`usdface.rbf.RBFTransfer` (``polynomial=True``). For geodesic or hybrid distances none of
-these guarantees holds; the transfer reports the condition number instead.
+of order 1, thin-plate spline and cubic of order 2 (:data:`CPD_ORDER`): they need the linear
+polynomial term of :class:`usdface.rbf.RBFTransfer` (``polynomial=True``), which the pipeline adds
+by itself (:func:`usdface.rbf.soundness.resolve_polynomial`). Every one of these guarantees is a
+statement about Euclidean distances; for geodesic or hybrid distances none holds, and
+:func:`usdface.rbf.soundness.check_kernel_method` says which kernel and distance pairs are sound.
 """
 from __future__ import annotations
 
@@ -42,6 +44,7 @@ __all__ = [
     "cubic",
     "KERNELS",
     "DECAYING_KERNELS",
+    "CPD_ORDER",
     "get_kernel",
     "canonical_kernel_name",
 ]
@@ -170,6 +173,19 @@ KERNELS: dict[str, Callable[..., np.ndarray]] = {
 #: kernels that tend to 0 at infinite distance (so ``+inf`` distances, e.g. from a bounded
 #: geodesic search, mean "no influence")
 DECAYING_KERNELS = frozenset({"gaussian", "inverse_multiquadric"})
+
+#: order of conditional positive definiteness on Euclidean distances (0: positive definite): the
+#: interpolation problem is uniquely solvable once the polynomials of degree < order are added
+#: (Micchelli 1986; Wendland, "Scattered Data Approximation", 2005, Ch. 8). The multiquadric is
+#: order 1 (a constant suffices; its plain matrix is also non-singular), thin-plate spline and cubic
+#: order 2 (the linear polynomial is needed).
+CPD_ORDER = {
+    "gaussian": 0,
+    "inverse_multiquadric": 0,
+    "multiquadric": 1,
+    "thin_plate_spline": 2,
+    "cubic": 2,
+}
 
 _ALIASES = {
     "thin_plate": "thin_plate_spline",

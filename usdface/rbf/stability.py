@@ -9,6 +9,14 @@ the amplification does.
 Amplification (the Lebesgue constant of the transfer): ``max_i sum_j |B_ij|`` for the N x M
 transfer matrix B (vertex displacement = B @ marker displacements). It bounds how far any vertex
 can move per unit of marker motion: about 1-5 for a well-behaved interpolant.
+
+Two bounds: above :data:`DEFAULT_MAX_AMPLIFICATION` (25x) ``regularization="auto"`` trades exact
+interpolation for a ridge term (:func:`fit_stable`); above :data:`WARN_AMPLIFICATION` (6x) whatever
+is left is reported (:func:`amplification_warning`). The warning bound was read off the tuning
+shapes of ``benchmarks/heldout_split.json`` (``python benchmarks/rbf_heldout.py``, section 1):
+every Gaussian or inverse multiquadric transfer (Euclidean, geodesic or hybrid, widths 1.5-4 cm)
+whose mesh error exceeded 1.25x the default Euclidean Gaussian's amplified marker motion 6.6x or
+more, and every one within it 4.7x or less.
 """
 from __future__ import annotations
 
@@ -21,6 +29,37 @@ import numpy as np
 LAMBDA_GRID = (0.0, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0)
 #: amplification above which "auto" regularises
 DEFAULT_MAX_AMPLIFICATION = 25.0
+#: amplification above which the transfer is reported as unreliable (see the module docstring)
+WARN_AMPLIFICATION = 6.0
+
+
+class AmplificationWarning(RuntimeWarning):
+    """The transfer moves some vertex more than :data:`WARN_AMPLIFICATION` times the marker motion."""
+
+
+def amplification_warning(amp: float, *, kernel: str, method: str, regularization: float = 0.0,
+                          bound: float = WARN_AMPLIFICATION) -> str | None:
+    """The one-line warning for a transfer amplifying marker motion ``amp`` times, or None.
+
+    Parameters
+    ----------
+    amp : float
+        :func:`amplification` of the transfer matrix.
+    kernel, method : str
+        Kernel and distance method, named in the message.
+    regularization : float
+        The ridge term used (named when > 0: it did not bring the amplification down enough).
+    bound : float
+        Warn above this (default :data:`WARN_AMPLIFICATION`).
+    """
+    if not amp > bound:
+        return None
+    ridge = f" even with regularization {regularization:.3g}" if regularization > 0 else ""
+    fixes = ["a smaller --stiffness"] + (["--method euclidean"] if method != "euclidean" else []) \
+        + (["--kernel gaussian"] if kernel != "gaussian" else [])
+    return (f"the {kernel} transfer on {method} distances amplifies marker motion {amp:.1f}x at some vertices"
+            f"{ridge} (a sound transfer stays under {bound:g}x): expect errors well above the markers' motion there; "
+            f"try {' or '.join(fixes)}")
 
 
 def amplification(transfer_matrix: np.ndarray) -> float:

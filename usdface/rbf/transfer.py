@@ -141,7 +141,9 @@ class RBFTransfer:
         One of :data:`usdface.rbf.kernels.KERNELS` (``gaussian`` = paper Eq. 3).
     widths : None, float, sequence or dict
         Kernel width per centre (mesh units); see :func:`usdface.rbf.stiffness.resolve_widths`.
-        None: ``width_factor`` x the median nearest-marker distance.
+        None: ``width_factor`` x the median nearest-marker distance of ``D_cc`` (the plain rule; the
+        pipeline's defaults come from :func:`usdface.rbf.stiffness.transfer_widths`, through
+        :func:`usdface.rbf.build.build_transfer`).
     polynomial : bool
         Interpolate mode only: add the linear polynomial term (reproduces affine motion exactly;
         recommended with multiquadric, thin-plate spline and cubic). Needs ``centre_points`` and

@@ -47,6 +47,8 @@ class ShotData:
     markers: np.ndarray | None = None        # (F, M, 3) stabilised marker positions (capture units), NaN invalid
     valid: np.ndarray | None = None          # (F, M) bool
     neutral: int = 0                         # index of the neutral frame
+    neutral_frames: tuple = (0, 1)           # frames start <= f < end the rest pose is averaged over
+    rest: np.ndarray | None = None           # (M, 3) the rest pose (capture units): displacements are from it
     filled: list = field(default_factory=list)   # [(marker, first index, stop index, method)] in shot frames
     stabilize: dict = field(default_factory=dict)  # the run's stabilisation report
     stab_rms: dict = field(default_factory=dict)   # {"markers"|"holdout": (before (F,), after (F,))}
@@ -151,6 +153,8 @@ def _capture(data: ShotData, cap, cap_step: dict) -> None:
     data.markers = pos
     data.valid = np.isfinite(pos).all(axis=2)
     data.neutral = int(np.clip(cap.neutral_frame, 0, pos.shape[0] - 1))
+    data.neutral_frames = cap.neutral_frames
+    data.rest = np.asarray(cap.neutral, dtype=np.float64)
     reports = cap_step.get("reports", {})
     data.stabilize = dict(reports.get("stabilize") or {})
     timing = reports.get("timing") or {}
@@ -169,13 +173,18 @@ def _capture(data: ShotData, cap, cap_step: dict) -> None:
                            ("holdout", (data.stabilize.get("holdout") or {}).get("markers", []))):
             idx = [data.marker_names.index(n) for n in names if n in data.marker_names]
             if idx:
-                data.stab_rms[key] = (_rms_from_neutral(raw[:, idx], data.neutral),
-                                      _rms_from_neutral(pos[:, idx], data.neutral))
+                data.stab_rms[key] = (_rms_from_neutral(raw[:, idx], data.neutral_frames),
+                                      _rms_from_neutral(pos[:, idx], data.neutral_frames))
 
 
-def _rms_from_neutral(p: np.ndarray, neutral: int) -> np.ndarray:
-    """(F,) root mean square over markers of the distance to their neutral-frame position."""
-    d = np.linalg.norm(p - p[neutral][None], axis=2)
+def _rms_from_neutral(p: np.ndarray, frames) -> np.ndarray:
+    """(F,) root mean square over markers of the distance to their rest position (the robust
+    average over the neutral frames ``start <= f < end``, as the capture's rest pose)."""
+    from ..capture.rest import robust_rest_pose
+
+    a, b = frames
+    rest = p[a] if b - a == 1 else robust_rest_pose(p[a:b])[0]
+    d = np.linalg.norm(p - rest[None], axis=2)
     with np.errstate(invalid="ignore"):
         return np.sqrt(np.nanmean(d * d, axis=1))
 

@@ -65,28 +65,35 @@ def bar_figure(title, names, values, *, ytitle="", key="", reference=None, refer
 
 # -- the shot's figures ---------------------------------------------------------------------------------
 
+def _rest(d) -> np.ndarray:
+    """(M, 3) the rest pose the displacements are measured from (the neutral frame's positions
+    when the data carries none)."""
+    return d.rest if d.rest is not None else d.markers[d.neutral]
+
+
 def trajectories_figure(d, *, shown: int = 8) -> dict:
-    """Distance of each marker from its neutral-frame position over the take (stabilised)."""
-    disp = np.linalg.norm(d.markers - d.markers[d.neutral][None], axis=2)  # (F, M)
+    """Distance of each marker from its rest position over the take (stabilised)."""
+    disp = np.linalg.norm(d.markers - _rest(d)[None], axis=2)  # (F, M)
     order = np.argsort(-np.nan_to_num(np.nanmax(np.where(np.isfinite(disp), disp, -np.inf), axis=0), nan=0))
     top = set(order[:shown].tolist())
     traces = [(n, d.frames, disp[:, m], m in top) for m, n in enumerate(d.marker_names)]
-    return line_figure(f"Marker motion from the neutral frame (stabilised, {d.units})", traces,
+    return line_figure(f"Marker motion from the rest pose (stabilised, {d.units})", traces,
                        ytitle=f"distance ({d.units})", key="trajectories")
 
 
 def marker_paths_figure(d) -> dict:
     """Front view (x, y) of every marker's path over the take, stabilised, relative to its neutral."""
-    rel = d.markers - d.markers[d.neutral][None]
+    rest = _rest(d)
+    rel = d.markers - rest[None]
     data = []
     for m, n in enumerate(d.marker_names):
-        x = d.markers[d.neutral, m, 0] + 4 * rel[:, m, 0]
-        y = d.markers[d.neutral, m, 1] + 4 * rel[:, m, 1]
+        x = rest[m, 0] + 4 * rel[:, m, 0]
+        y = rest[m, 1] + 4 * rel[:, m, 1]
         data.append({"type": "scatter", "mode": "lines", "name": n, "x": compact(x), "y": compact(y),
                      "line": {"width": 1, "color": _PALETTE[m % len(_PALETTE)]}, "showlegend": False,
                      "hoverinfo": "name"})
-    data.append({"type": "scatter", "mode": "markers+text", "name": "neutral", "x": compact(d.markers[d.neutral, :, 0]),
-                 "y": compact(d.markers[d.neutral, :, 1]), "text": list(d.marker_names), "textposition": "top center",
+    data.append({"type": "scatter", "mode": "markers+text", "name": "neutral", "x": compact(rest[:, 0]),
+                 "y": compact(rest[:, 1]), "text": list(d.marker_names), "textposition": "top center",
                  "textfont": {"size": 8, "color": "#555"}, "marker": {"size": 4, "color": "#222"},
                  "showlegend": False})
     lay = _layout("Marker paths, front view (motion x4 around each neutral position)", f"x ({d.units})",

@@ -87,8 +87,9 @@ def head_motion_in_mesh_space(head_motion: np.ndarray, capture_to_mesh: np.ndarr
 
 def capture_head_motion(capture, capture_to_mesh: np.ndarray) -> np.ndarray | None:
     """The head motion a stabilised capture removed, in mesh space and relative to its neutral
-    frame: ``H_mesh(f) = C H(n)^-1 H(f) C^-1`` (decision D1; identity on the neutral frame n), as
-    the skeleton and the blend-shape curves carry it on /Face.
+    frame: ``H_mesh(f) = C H(n)^-1 H(f) C^-1`` (decision D1; identity on the neutral frame n, whose
+    head pose the conditioning stabilises on; see :func:`usdface.capture.retarget.mesh_head_motion`),
+    as the skeleton and the blend-shape curves carry it on /Face.
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 
 Given markers bound to the face surface (a :class:`~usdface.mesh.Binding`: triangle and
 barycentric weights per marker) and their captured displacements per frame (in mesh space, from
-the neutral frame), find per frame the contractions in [0, 1] (and the jaw opening) that best
+the capture's rest pose), find per frame the contractions in [0, 1] (and the jaw opening) that best
 reproduce them:
 
 1. **linearised response** (:func:`linear_response`): the static response of the bound points to
@@ -55,7 +55,7 @@ class FitParameters:
 
 
 def capture_displacements(capture, binding, *, stabilize="auto"):
-    """Marker displacements from the neutral frame in mesh space, in the binding's marker order.
+    """Marker displacements from the rest pose in mesh space, in the binding's marker order.
 
     Parameters
     ----------
@@ -69,7 +69,8 @@ def capture_displacements(capture, binding, *, stabilize="auto"):
     Returns
     -------
     displacements : ndarray (F, M, 3) float64
-        ``T (p_f - p_neutral)`` with ``T`` the binding's displacement transform (mesh units).
+        ``T (p_f - rest)`` with ``T`` the binding's displacement transform (mesh units) and
+        ``rest`` the capture's rest pose (:attr:`usdface.model.capture.Capture.neutral`).
     capture : Capture
         The capture used (stabilised when it was done here).
 
@@ -89,8 +90,8 @@ def capture_displacements(capture, binding, *, stabilize="auto"):
 
         capture, _ = stabilize_fn(capture)
     idx = [capture.names.index(n) for n in binding.names]
-    pos = capture.positions[:, idx]
-    disp = pos - pos[capture.neutral_frame]
+    # from the capture's rest pose (averaged over its neutral stretch), not its neutral frame alone
+    disp = capture.positions[:, idx] - capture.neutral[idx][None]
     return disp @ binding.displacement_transform().T, capture
 
 

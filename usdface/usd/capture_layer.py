@@ -67,6 +67,7 @@ def write_capture_layer(path: str | os.PathLike, capture: Capture, *, prov: dict
         prim.GetAttribute("usdface:markerSet:sourceFile").Set(display_name(os.path.basename(capture.source)))
         prim.GetAttribute("usdface:markerSet:sourceUnits").Set(capture.units)
         prim.GetAttribute("usdface:markerSet:neutralTime").Set(float(start + capture.neutral_frame))
+        _write_rest_pose(prim, capture)
         dims = next((h.get("dims") for h in capture.history if "dims" in h), 3)
         prim.GetAttribute("usdface:markerSet:dimensions").Set(int(dims))
         valid_attr = prim.GetAttribute("primvars:usdface:valid")
@@ -162,13 +163,46 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
     start = int(round(times[0])) if not isinstance(times[0], Usd.TimeCode) else 0
     neutral_value = prim.GetAttribute("usdface:markerSet:neutralTime").Get()
     neutral_time = start if neutral_value is None else neutral_value
+    neutral_frame = int(round(neutral_time)) - start
+    window = _read_neutral_window(prim, start, neutral_frame, positions.shape[0], path)
     history = json.loads(stage.GetRootLayer().customLayerData.get("usdface", {}).get("captureHistory", "[]"))
     # units as the capture recorded them (a composing stage may have other metersPerUnit)
     source_units = prim.GetAttribute("usdface:markerSet:sourceUnits").Get()
     units = source_units if source_units in METERS_PER_UNIT else stage_units(stage)
     return Capture(names=names, positions=positions, rate=float(rate), units=units, start_frame=start,
-                   neutral_frame=int(round(neutral_time)) - start, source=describe(path),
-                   head_motion=head_motion, history=tuple(history))
+                   neutral_frame=neutral_frame, source=describe(path),
+                   head_motion=head_motion, history=tuple(history), neutral_window=window)
+
+
+def _write_rest_pose(prim: Usd.Prim, capture: Capture) -> None:
+    """The neutral stretch (time codes, inclusive), the rest pose and the motion over the stretch."""
+    from ..capture.rest import residual_motion
+
+    a, b = capture.neutral_frames
+    start = capture.start_frame
+    prim.GetAttribute("usdface:markerSet:neutralStartTime").Set(float(start + a))
+    prim.GetAttribute("usdface:markerSet:neutralEndTime").Set(float(start + b - 1))
+    rest = np.asarray(capture.neutral, dtype=np.float64)
+    held = np.where(np.isfinite(rest), rest, 0.0)  # a marker without a rest position: 0, as the data says
+    prim.GetAttribute("usdface:markerSet:restPoints").Set(Vt.Vec3fArray.FromNumpy(held.astype(np.float32)))
+    rms, top = residual_motion(capture.positions[a:b], rest)
+    prim.GetAttribute("usdface:markerSet:neutralMotionRms").Set(float(rms))
+    prim.GetAttribute("usdface:markerSet:neutralMotionMax").Set(float(top))
+
+
+def _read_neutral_window(prim: Usd.Prim, start: int, neutral_frame: int, n_frames: int, path):
+    """``(start, end)`` frame indices of the recorded neutral stretch, or None (usdface 0.2 layers
+    record none: the neutral frame alone)."""
+    first = prim.GetAttribute("usdface:markerSet:neutralStartTime")
+    last = prim.GetAttribute("usdface:markerSet:neutralEndTime")
+    if not (first and first.HasAuthoredValue() and last and last.HasAuthoredValue()):
+        return None
+    a, b = int(round(first.Get())) - start, int(round(last.Get())) - start + 1
+    if not 0 <= a <= neutral_frame < b <= n_frames:
+        raise InputError(f"capture {describe(path)}: neutral stretch {first.Get():g}-{last.Get():g} must hold the "
+                         f"neutral time {start + neutral_frame} and lie within the layer's time codes "
+                         f"{start}-{start + n_frames - 1}")
+    return None if b - a == 1 else (a, b)
 
 
 def _head_op(prim: Usd.Prim):

@@ -46,6 +46,7 @@ def describe(path: str | os.PathLike) -> dict:
                 "sourceFile": prim.GetAttribute("usdface:markerSet:sourceFile").Get(),
                 "sourceUnits": prim.GetAttribute("usdface:markerSet:sourceUnits").Get(),
                 "neutralTime": prim.GetAttribute("usdface:markerSet:neutralTime").Get(),
+                **_neutral_stretch(prim, stage),
                 "invalidSamples": invalid,
                 **_head_motion(prim),
                 "take": (marker_set_take(prim) or {}).get("sha256"),  # computed from its capture layer
@@ -99,6 +100,33 @@ def describe(path: str | os.PathLike) -> dict:
     return out
 
 
+def _neutral_stretch(prim, stage) -> dict:
+    """The neutral stretch (time codes, inclusive) and the motion over it in cm; a layer of
+    usdface 0.2 records none: its neutral time alone, motion unknown."""
+    from ..units import METERS_PER_UNIT, scale_between
+
+    t = prim.GetAttribute("usdface:markerSet:neutralTime").Get()
+    first, last = (prim.GetAttribute(f"usdface:markerSet:neutral{k}Time") for k in ("Start", "End"))
+    if not (first and first.HasAuthoredValue() and last and last.HasAuthoredValue()):
+        return {"neutralTimes": [t, t], "neutralMotionRmsCm": None, "neutralMotionMaxCm": None}
+    units = prim.GetAttribute("usdface:markerSet:sourceUnits").Get()
+    to_cm = scale_between(units, "cm") if units in METERS_PER_UNIT else None
+    out = {"neutralTimes": [first.Get(), last.Get()]}
+    for key in ("Rms", "Max"):
+        value = prim.GetAttribute(f"usdface:markerSet:neutralMotion{key}").Get()
+        out[f"neutralMotion{key}Cm"] = None if value is None or to_cm is None else round(float(value) * to_cm, 5)
+    return out
+
+
+def _format_neutral(m: dict) -> str:
+    a, b = m["neutralTimes"]
+    frames = f"neutral time {a:g}" if a == b else f"neutral times {a:g}-{b:g} (around neutral frame {m['neutralTime']:g})"
+    if m.get("neutralMotionRmsCm") is None:
+        return frames + ("" if a == b else ", motion there unknown")
+    return (f"{frames}, markers move {m['neutralMotionRmsCm']:.3f} cm RMS ({m['neutralMotionMaxCm']:.3f} cm at most) "
+            "there")
+
+
 def _head_motion(marker_prim) -> dict:
     """Whether the capture carries head motion (its /Capture xformOp:transform is time-sampled),
     and whether this stage applies it (a shot drops it from the op order to show the markers on
@@ -132,11 +160,11 @@ def format_description(d: dict) -> list[str]:
         if "markerSet" in p:
             m = p["markerSet"]
             lines.append(f"      {m['markers']} markers, {m['frames']} frames at {m['captureRate']:g} Hz, "
-                         f"source units {m['sourceUnits']}, neutral time {m['neutralTime']:g}, "
-                         f"{m['invalidSamples']} invalid samples, head motion: "
+                         f"source units {m['sourceUnits']}, {m['invalidSamples']} invalid samples, head motion: "
                          + ("no" if not m["headMotion"] else
                             "yes (removed by stabilisation; applied to the markers here)" if m["headMotionApplied"] else
                             "yes (removed by stabilisation; markers shown stabilised here)"))
+            lines.append(f"      {_format_neutral(m)}")
             lines.append(f"      from {m['sourceFile']}: {', '.join(m['names'][:8])}{', ...' if m['markers'] > 8 else ''}")
             if m.get("take"):
                 lines.append(f"      take {short(m['take'])}")

@@ -144,11 +144,14 @@ def stage_units(stage: Usd.Stage) -> str | None:
 
 def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.PathLike | None],
                identity: dict | None = None) -> dict:
-    """Provenance for customLayerData: usdface version, processor, options, input names and hashes,
-    and ``identity``: what the layer belongs to (:func:`usdface.usd.identity.identity`).
+    """Provenance for customLayerData: usdface version, processor, the algorithms' revision
+    (:mod:`usdface.revisions`: recorded above 1), options, input names and hashes, and
+    ``identity``: what the layer belongs to (:func:`usdface.usd.identity.identity`).
 
     No timestamps, host names or absolute paths, so the same inputs give byte-identical layers.
     """
+    from ..revisions import provenance_revision
+
     recorded = {}
     for role, path in inputs.items():
         if path is None:
@@ -161,6 +164,7 @@ def provenance(processor: str, *, options: dict, inputs: dict[str, str | os.Path
     prov = {
         "usdfaceVersion": __version__,
         "processor": processor,
+        **provenance_revision(processor),
         "options": json.dumps(options, sort_keys=True, default=str),
         "inputs": json.dumps(recorded, sort_keys=True),
     }

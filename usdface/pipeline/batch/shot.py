@@ -169,9 +169,12 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     """Whether OUTDIR holds this shot's outputs with matching provenance; (answer, reason).
 
     Checks: every output file exists; summary.json's run provenance equals this shot's (usdface
-    version, options, input names and sha256); and each layer's provenance names the usdface
-    version and inputs whose sha256 equal the files in OUTDIR (the chain was not edited since).
+    version, the algorithms' revisions (:mod:`usdface.revisions`: a shot made by an older revision
+    is stale), options, input names and sha256); and each layer's provenance names the usdface
+    version, its processor's current revision and inputs whose sha256 equal the files in OUTDIR
+    (the chain was not edited since).
     """
+    from ...revisions import revision
     from ...usd.shot_record import read_shot_record, verify_shot
     from ..run import output_files, run_provenance
 
@@ -198,7 +201,7 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
     expected = run_provenance(shot.mesh, capture, opts)
     if summary.get("provenance") != expected:
         old = summary.get("provenance") or {}
-        what = [k for k in ("usdfaceVersion", "options", "inputs") if old.get(k) != expected.get(k)]
+        what = [k for k in ("usdfaceVersion", "revisions", "options", "inputs") if old.get(k) != expected.get(k)]
         return False, f"provenance differs ({', '.join(what) or 'absent'})"
     if recorded:  # every file is the one committed with the shot, and a commit holds one run's files
         return True, "outputs current"
@@ -209,6 +212,9 @@ def shot_is_current(shot: Shot) -> tuple[bool, str]:
         prov = _layer_provenance(out / name)
         if prov is None or prov.get("usdfaceVersion") != __version__:
             return False, f"{name}: provenance absent or from another usdface version"
+        made_by, now = int(prov.get("revision", 1)), revision(str(prov.get("processor")))
+        if made_by != now:
+            return False, f"{name}: made by revision {made_by} of {prov.get('processor')}, now {now}"
         for role, rec in json.loads(prov.get("inputs", "{}")).items():
             f = out / rec["file"]
             if f.name in files:
