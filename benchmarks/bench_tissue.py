@@ -42,7 +42,7 @@ from usdface.io.meshes import read_mesh  # noqa: E402
 from usdface.model.mesh import FaceMesh  # noqa: E402
 from usdface.mesh.topology import find_hole_regions  # noqa: E402
 from usdface.tissue import _kernels as kn  # noqa: E402
-from usdface.tissue.animate import animate  # noqa: E402
+from usdface.tissue.animation import animate  # noqa: E402
 from usdface.tissue.expressions import expression_timeline  # noqa: E402
 from usdface.tissue.integrators import Simulator  # noqa: E402
 from usdface.tissue.model import build_tissue_model  # noqa: E402

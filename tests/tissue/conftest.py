@@ -12,7 +12,7 @@ import pytest
 from usdface.io.meshes import read_mesh
 from usdface.model.mesh import FaceMesh
 from usdface.mesh.topology import find_hole_regions
-from usdface.tissue.animate import animate
+from usdface.tissue.animation import animate
 from usdface.tissue.expressions import PRESET_NAMES, expression_timeline
 from usdface.tissue.integrators import Simulator
 from usdface.tissue.model import build_tissue_model

@@ -8,7 +8,7 @@ import pytest
 
 from usdface.errors import OptionError
 from usdface.tissue import _kernels as kn
-from usdface.tissue.animate import animate
+from usdface.tissue.animation import animate
 from usdface.tissue.expressions import expression_timeline, preset_contractions
 from usdface.tissue.integrators import DivergenceError, Simulator
 from usdface.tissue.model import build_tissue_model

@@ -20,13 +20,11 @@ import numpy as np
 
 from ..errors import DependencyError, InputError, OptionError, ResourceError
 from ..fileutil import fsync_dir, fsync_file
+from .formats import MOVIE_SUFFIXES, X264_PRESETS  # noqa: F401 (X264_PRESETS re-exported)
 
-#: x264 speed presets the playblast offers (``--preset``)
-X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower")
 
 __all__ = ["MOVIE_SUFFIXES", "MovieWriter", "movie_info", "read_movie", "require_encoder"]
 
-MOVIE_SUFFIXES = (".mp4", ".m4v", ".mov")
 #: the extra that installs PyAV
 EXTRA = "media"
 _INSTALL = f'pip install "usdface[{EXTRA}]" (PyAV, which ships FFmpeg with the x264 encoder in its wheel)'

@@ -4,9 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import OptionError
-from ..media.movie import X264_PRESETS
-from ..preview.camera import VIEW_CHOICES as VIEWS
-from ..preview.colormap import COLORS
+from ..media.formats import X264_PRESETS
+from ..preview.choices import COLORS, VIEW_CHOICES as VIEWS
 from .fields import Options, option
 from .values import boolean, integer, number, pair, path, positive_float, positive_int, shown
 

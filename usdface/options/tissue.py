@@ -14,7 +14,7 @@ from typing import Mapping
 
 from ..errors import OptionError, list_names
 from ..tissue import INTEGRATORS
-from ..tissue.expressions import PRESET_NAMES
+from ..tissue.presets import PRESET_NAMES
 from .fields import Options, option
 from .values import nonnegative_float, number, path, shown
 

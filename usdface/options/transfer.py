@@ -7,7 +7,7 @@ from typing import Any, Mapping
 
 from ..distance.methods import METHODS
 from ..errors import OptionError
-from ..rbf.kernels import KERNELS
+from ..rbf.kernel_names import KERNEL_NAMES
 from .fields import Options, option
 from .values import boolean, nonnegative_float, positive_float, shown
 
@@ -49,7 +49,7 @@ class TransferOptions(Options):
 
     rbf: str = option("interpolate", flag="--rbf", choices=("paper", "interpolate"), group="transfer",
                       help="paper: Eqs. 1-5 as published; interpolate: exact RBF solve")
-    kernel: str = option("gaussian", flag="--kernel", choices=tuple(KERNELS), group="transfer", help="radial basis function")
+    kernel: str = option("gaussian", flag="--kernel", choices=KERNEL_NAMES, group="transfer", help="radial basis function")
     stiffness: Any = option(None, flag="--stiffness", coerce=stiffness_value, metavar="WIDTH|JSON", group="transfer",
                             help="kernel width in mesh units for every marker, or a JSON file {marker: width} "
                                  "(default: per marker, 0.7 x its mean distance to its 3 nearest markers in the "

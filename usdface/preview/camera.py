@@ -40,12 +40,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import OptionError, list_names
+from .choices import VIEW_CHOICES  # noqa: F401 (the views offered)
 
 #: yaw in degrees of each named view (``turntable``: its still, the front)
 VIEWS = {"front": 0.0, "three-quarter": 35.0, "side": 90.0, "turntable": 0.0, "left": 35.0, "right": -35.0,
          "side_left": 90.0, "side_right": -90.0}
-#: the views the commands offer (``preview --view``, ``playblast --view``), in help order
-VIEW_CHOICES = ("front", "three-quarter", "side", "turntable", "left", "right", "side_right")
 #: the turntable swings the camera between -TURNTABLE_SWING and +TURNTABLE_SWING degrees of yaw
 TURNTABLE_SWING = 75.0
 

@@ -17,9 +17,8 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import OptionError, list_names
+from .choices import COLORS  # noqa: F401 (the colours offered)
 
-#: surface colours the commands offer (``preview --color``, ``playblast --color``)
-COLORS = ("regions", "displacement", "error", "hybrid-weight", "none")
 
 #: control colours, sRGB hex, evenly spaced from the low end to the high end
 _CONTROL = {

@@ -33,7 +33,7 @@ def fit_muscles(mesh_path, rig_path, capture_path, binding_path, *, options: Fit
     per frame and the error statistics.
     """
     from ..progress import progress
-    from ..tissue.animate import ControlSamples
+    from ..tissue.animation import ControlSamples
     from ..tissue.fit import capture_displacements, fit_sequence, linear_response
     from ..tissue.simulation import build_simulator
     from ..usd.identity import capture_record, claims_of, identity, markers_record, verify

@@ -27,7 +27,7 @@ def simulate(mesh_path, rig_path, *, options: SimulateOptions, output) -> Result
     energy, the volume change, and the displacement of facial landmarks at the last frame.
     """
     from ..progress import progress
-    from ..tissue.animate import ControlSamples
+    from ..tissue.animation import ControlSamples
     from ..tissue.simulation import build_simulator
     from ..usd.identity import identity
     from ..usd.muscle_layer import read_rig_layer, write_tissue_animation_layer, write_tissue_shot
@@ -83,7 +83,7 @@ def _timeline(options: SimulateOptions, rig):
 def _simulated_chunks(sim, tl, frames, energy: list):
     """``(frames slice, skin points (f, N, 3))`` blocks of the simulated timeline; the total energy
     of every frame is appended to ``energy``."""
-    from ..tissue.animate import animate
+    from ..tissue.animation import animate
 
     n = frames.size
     it = animate(sim, tl, frames=frames)

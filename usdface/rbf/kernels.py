@@ -35,6 +35,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import OptionError
+from .kernel_names import KERNEL_NAMES
 
 __all__ = [
     "gaussian",
@@ -162,13 +163,8 @@ def cubic(d, width=1.0) -> np.ndarray:
 
 
 #: kernel name -> function; names follow scipy.interpolate.RBFInterpolator where they exist
-KERNELS: dict[str, Callable[..., np.ndarray]] = {
-    "gaussian": gaussian,
-    "multiquadric": multiquadric,
-    "inverse_multiquadric": inverse_multiquadric,
-    "thin_plate_spline": thin_plate_spline,
-    "cubic": cubic,
-}
+KERNELS: dict[str, Callable[..., np.ndarray]] = dict(zip(
+    KERNEL_NAMES, (gaussian, multiquadric, inverse_multiquadric, thin_plate_spline, cubic), strict=True))
 
 #: kernels that tend to 0 at infinite distance (so ``+inf`` distances, e.g. from a bounded
 #: geodesic search, mean "no influence")

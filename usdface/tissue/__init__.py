@@ -15,7 +15,7 @@
 - :mod:`~usdface.tissue.rig` — landmarks and the default rig of named muscles:
   :func:`default_rig`, :func:`face_landmarks`, :func:`warp_rig`, :class:`MuscleRig`.
 - :mod:`~usdface.tissue.expressions` — presets and contraction timelines (JSON).
-- :mod:`~usdface.tissue.animate` — driving a simulator through a timeline; :class:`ControlSamples`.
+- :mod:`~usdface.tissue.animation` — driving a simulator through a timeline; :class:`ControlSamples`.
 - :mod:`~usdface.tissue.simulation` — a face ready to simulate (:func:`build_simulator`) and what a
   simulation reports (:func:`volume_stats`).
 - :mod:`~usdface.tissue.fit` — contractions fitted to marker motion (:class:`FitParameters`).
@@ -37,7 +37,7 @@ _EXPORTS = {
     "expression_timeline": "expressions", "preset_contractions": "expressions", "read_timeline": "expressions",
     "FitParameters": "fit", "FitResult": "fit", "LinearResponse": "fit", "capture_displacements": "fit",
     "fit_frames": "fit", "fit_sequence": "fit", "linear_response": "fit",
-    "ControlSamples": "animate", "build_simulator": "simulation", "tissue_options": "simulation",
+    "ControlSamples": "animation", "animate": "animation", "build_simulator": "simulation", "tissue_options": "simulation",
     "volume_stats": "simulation", "preset_contact_sheet": "pictures", "preset_poses": "pictures",
     "DivergenceError": "divergence", "EquilibriumReport": "integrators",
     "Simulator": "integrators",
@@ -45,11 +45,6 @@ _EXPORTS = {
     "Jaw": "muscles", "Muscle": "muscles", "MuscleSet": "muscles", "compile_muscles": "muscles",
     "MuscleRig": "rig", "default_rig": "rig", "face_landmarks": "rig", "jaw_weights": "rig", "warp_rig": "rig",
 }
-
-
-# eager: the function shares its submodule's name, and a lazy attribute would lose to the submodule
-# once anything imports usdface.tissue.animate (the module is light: no simulator until it runs)
-from .animate import animate  # noqa: E402
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

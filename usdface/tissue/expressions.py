@@ -28,25 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, InputError, OptionError, list_names
-
-JAW_KEY = "jawOpen"
-
-#: contraction presets: base muscle name (both sides when it has _L/_R) -> contraction; "jawOpen"
-PRESETS: dict[str, dict[str, float]] = {
-    "neutral": {},
-    "joy": {"zygomaticMajor": 1.0, "orbicularisOculi": 0.45, "risorius": 0.2, "levatorLabiiSuperioris": 0.15,
-            JAW_KEY: 0.08},
-    "sadness": {"frontalisInner": 1.0, "corrugator": 0.5, "depressorAnguliOris": 1.0, "mentalis": 0.6},
-    "anger": {"corrugator": 1.0, "procerus": 1.0, "orbicularisOculi": 0.5, "orbicularisOris": 0.5,
-              "levatorLabiiSuperioris": 0.3},
-    "fear": {"frontalisInner": 1.0, "frontalisOuter": 0.5, "corrugator": 0.5, "risorius": 1.0,
-             "depressorLabiiInferioris": 0.8, JAW_KEY: 0.2},
-    "disgust": {"levatorLabiiAlaeque": 1.0, "levatorLabiiSuperioris": 0.7, "corrugator": 0.4, "procerus": 0.6,
-                "orbicularisOculi": 0.35, "depressorAnguliOris": 0.4, "mentalis": 0.4},
-    "surprise": {"frontalisInner": 1.0, "frontalisOuter": 1.0, JAW_KEY: 0.4},
-    "pursed_lips": {"orbicularisOris": 1.0, "mentalis": 0.3},
-}
-PRESET_NAMES = tuple(PRESETS)
+from .presets import JAW_KEY, PRESET_NAMES, PRESETS  # noqa: F401 (re-exported: the presets' home was here)
 
 
 def preset_contractions(name: str, muscle_names, *, intensity: float = 1.0) -> tuple[np.ndarray, float]:

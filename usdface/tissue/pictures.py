@@ -20,7 +20,7 @@ def preset_poses(mesh, regions, presets=None, *, integrator: str = "implicit") -
         Preset names (default :data:`usdface.tissue.expressions.PRESET_NAMES`).
     integrator : {"explicit", "symplectic", "implicit"}
     """
-    from .animate import animate
+    from .animation import animate
     from .expressions import PRESET_NAMES, expression_timeline
     from .rig import default_rig
     from .simulation import build_simulator

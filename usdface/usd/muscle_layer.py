@@ -24,7 +24,7 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from ..errors import InputError
-from ..tissue.animate import ControlSamples
+from ..tissue.animation import ControlSamples
 from ..tissue.muscles import Muscle
 from ..tissue.rig import MuscleRig
 from ..units import scale_between
