@@ -361,23 +361,7 @@ def stabilize(capture: Capture, *, markers=None, n_auto: int = 8, reference="neu
         ref_f = _frame_index(capture, reference, "reference")
         ref = pos[ref_f]
 
-    if markers is None:
-        cands = _candidates(capture, ref)
-        n = _check_n_auto(n_auto, len(cands), capture)
-        keep, _ = _select(pos, ref, cands, n)
-        auto = True
-    else:
-        keep = np.asarray(_indices(capture, markers, what="stable marker"), dtype=np.int64)
-        if len(keep) < 3:
-            raise OptionError(f"markers: a rigid fit needs at least 3 stable markers; got {list_names(markers)}")
-        bad = [capture.names[i] for i in keep if not np.isfinite(ref[i]).all()]
-        if bad:
-            raise MarkerError(
-                f"stable marker(s) {list_names(bad)} invalid at reference frame {ref_f}; "
-                f"choose other markers or another reference frame"
-            )
-        auto = False
-
+    keep, auto = _stable_markers(capture, ref, ref_f, markers, n_auto)
     rot, _, t = fit_rigid_batch(ref[keep], pos[:, keep])
     good = np.isfinite(rot).all(axis=(1, 2))
     if not good.any():
@@ -399,20 +383,7 @@ def stabilize(capture: Capture, *, markers=None, n_auto: int = 8, reference="neu
     scores = _scores(local, ref)
     scores[~np.isfinite(ref).all(axis=1)] = np.nan
 
-    # held-out evaluation
-    keep_set = set(int(i) for i in keep)
-    if holdout is None:
-        others = [i for i in np.argsort(np.where(np.isfinite(scores), scores, np.inf), kind="stable")
-                  if i not in keep_set and np.isfinite(scores[i])]
-        hold = others[: max(3, len(keep) // 2)]
-    else:
-        hold = _indices(capture, holdout, what="holdout marker")
-        overlap = [capture.names[i] for i in hold if i in keep_set]
-        if overlap:
-            raise OptionError(f"holdout markers {list_names(overlap)} are also stable (fit) markers")
-        bad = [capture.names[i] for i in hold if not np.isfinite(ref[i]).all()]
-        if bad:
-            raise MarkerError(f"holdout marker(s) {list_names(bad)} invalid at reference frame {ref_f}")
+    hold = _holdout_markers(capture, ref, ref_f, holdout, keep, scores)
     before = after = None
     hold_names = tuple(capture.names[i] for i in hold)
     if len(hold) >= 3:
@@ -442,3 +413,41 @@ def stabilize(capture: Capture, *, markers=None, n_auto: int = 8, reference="neu
         "max_fit_rms": report.summary()["max_fit_rms"],
     }
     return capture.replace(step=step, positions=local, head_motion=head), report
+
+
+def _stable_markers(capture: Capture, ref: np.ndarray, ref_f: int, markers, n_auto: int) -> tuple[np.ndarray, bool]:
+    """(indices of the markers the rigid fit uses, whether they were chosen automatically)."""
+    if markers is None:
+        cands = _candidates(capture, ref)
+        n = _check_n_auto(n_auto, len(cands), capture)
+        keep, _ = _select(capture.positions, ref, cands, n)
+        return keep, True
+    keep = np.asarray(_indices(capture, markers, what="stable marker"), dtype=np.int64)
+    if len(keep) < 3:
+        raise OptionError(f"markers: a rigid fit needs at least 3 stable markers; got {list_names(markers)}")
+    bad = [capture.names[i] for i in keep if not np.isfinite(ref[i]).all()]
+    if bad:
+        raise MarkerError(
+            f"stable marker(s) {list_names(bad)} invalid at reference frame {ref_f}; "
+            f"choose other markers or another reference frame"
+        )
+    return keep, False
+
+
+def _holdout_markers(capture: Capture, ref: np.ndarray, ref_f: int, holdout, keep: np.ndarray,
+                     scores: np.ndarray) -> list:
+    """Indices of the markers the report measures the residual rigid motion on: ``holdout``
+    (checked), else the ``max(3, len(keep) // 2)`` most rigid markers outside the fit."""
+    keep_set = set(int(i) for i in keep)
+    if holdout is None:
+        others = [i for i in np.argsort(np.where(np.isfinite(scores), scores, np.inf), kind="stable")
+                  if i not in keep_set and np.isfinite(scores[i])]
+        return others[: max(3, len(keep) // 2)]
+    hold = _indices(capture, holdout, what="holdout marker")
+    overlap = [capture.names[i] for i in hold if i in keep_set]
+    if overlap:
+        raise OptionError(f"holdout markers {list_names(overlap)} are also stable (fit) markers")
+    bad = [capture.names[i] for i in hold if not np.isfinite(ref[i]).all()]
+    if bad:
+        raise MarkerError(f"holdout marker(s) {list_names(bad)} invalid at reference frame {ref_f}")
+    return hold
