@@ -258,3 +258,25 @@ def test_every_leaf_command_has_an_api_function_of_the_same_name():
     assert {"landmarks_train", "plugin_path", "shapes_transfer", "fit_muscles"} <= expected
     for name in expected:
         assert callable(getattr(api, name))
+
+
+def test_every_command_prints_its_help():
+    """Every command's --help renders: declared help is plain text, so a '%' in it ("8-15% long",
+    fmm's help once) is not taken for an argparse format (which made `run --help` a traceback)."""
+    import argparse
+
+    from usdface.console import build_parser
+
+    def leaves(parser, words=()):
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subs:
+            yield words, parser
+        for sub in subs:
+            for name, child in sub.choices.items():
+                yield from leaves(child, words + (name,))
+
+    found = list(leaves(build_parser()))
+    assert len(found) >= 26
+    for words, parser in found:
+        text = parser.format_help()
+        assert text.startswith("usage: ") and "%%" not in text, words

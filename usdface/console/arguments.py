@@ -21,6 +21,11 @@ def add_common_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="only errors")
 
 
+def plain_help(text):
+    """Declared help is plain text: a '%' in it ("8-15% long") is not an argparse format."""
+    return None if text is None else text.replace("%", "%%")
+
+
 def _default_text(value) -> str:
     if value is None or value is False or value == ():
         return ""
@@ -35,12 +40,12 @@ def _add_field(target, f) -> None:
     action = md.get("action")
     if action is None and isinstance(f.default, bool):
         target.add_argument(md["flag"], dest=f.name, action="store_false" if f.default else "store_true",
-                            default=argparse.SUPPRESS, help=md["help"])
+                            default=argparse.SUPPRESS, help=plain_help(md["help"]))
         return
     if action == "store_true":
-        target.add_argument(md["flag"], dest=f.name, action="store_true", default=argparse.SUPPRESS, help=md["help"])
+        target.add_argument(md["flag"], dest=f.name, action="store_true", default=argparse.SUPPRESS, help=plain_help(md["help"]))
         return
-    kwargs = dict(dest=f.name, default=argparse.SUPPRESS, help=md["help"] + _default_text(f.default))
+    kwargs = dict(dest=f.name, default=argparse.SUPPRESS, help=plain_help(md["help"] + _default_text(f.default)))
     if action is not None:
         kwargs["action"] = action
     for key in ("choices", "metavar", "nargs", "const"):
@@ -82,12 +87,12 @@ def add_inputs_and_outputs(parser: argparse.ArgumentParser, processor) -> None:
     for i in processor.inputs:
         nargs = "+" if i.kind == "files" else None
         if i.flag is None:
-            parser.add_argument(i.argument, help=i.help, nargs=nargs)
+            parser.add_argument(i.argument, help=plain_help(i.help), nargs=nargs)
         else:
-            parser.add_argument(i.flag, dest=i.argument, required=i.required, help=i.help, metavar=i.metavar,
+            parser.add_argument(i.flag, dest=i.argument, required=i.required, help=plain_help(i.help), metavar=i.metavar,
                                 nargs=nargs)
     for o in processor.outputs:
-        kwargs = dict(dest=o.argument, required=o.required, help=o.help, metavar=o.metavar)
+        kwargs = dict(dest=o.argument, required=o.required, help=plain_help(o.help), metavar=o.metavar)
         if o.nargs is not None:
             kwargs.update(nargs=o.nargs, const=o.const)
         parser.add_argument(*o.flags, **kwargs)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from .. import __version__
-from .arguments import add_common_options, add_inputs_and_outputs, add_options
+from .arguments import add_common_options, add_inputs_and_outputs, add_options, plain_help
 
 __all__ = ["build_parser"]
 
@@ -28,10 +28,10 @@ def build_parser() -> argparse.ArgumentParser:
         else:
             if words[0] not in nested:
                 g = groups[words[0]]
-                gp = sub.add_parser(words[0], help=g.summary, description=g.description)
+                gp = sub.add_parser(words[0], help=plain_help(g.summary), description=g.description)
                 nested[words[0]] = gp.add_subparsers(dest=f"{words[0]}_command", metavar=g.metavar, required=True)
             target = nested[words[0]]
-        leaf = target.add_parser(words[-1], help=p.summary, description=p.description)
+        leaf = target.add_parser(words[-1], help=plain_help(p.summary), description=p.description)
         add_inputs_and_outputs(leaf, p)
         add_options(leaf, p.options, exclude=p.hidden_options, exclusive=p.exclusive)
         add_common_options(leaf)
