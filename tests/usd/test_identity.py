@@ -370,6 +370,17 @@ def test_info_shows_identities_to_compare_by_eye(fx, capsys):
     assert summary["provenance"]["identity"] == recorded(fx["anim"])
 
 
+def test_info_names_the_revision_a_layer_was_made_by(fx):
+    """A layer of a processor whose algorithms changed since usdface 0.2 says which revision made it
+    (usdface.revisions); one of a processor at revision 1 records none and says none."""
+    from usdface import __version__, api
+    from usdface.revisions import revision
+
+    assert f"  written by usdface {__version__} (transfer, revision {revision('transfer')})" in api.info(fx["anim"]).text
+    assert revision("import-mesh") == 1
+    assert f"  written by usdface {__version__} (import-mesh)" in api.info(fx["mh"]).text
+
+
 def test_distance_cache_is_shared_across_takes_of_one_character(fx, tmp_path):
     """The identities add no take to a binding or an analysis: the matrices computed for the Jaw
     take's binding serve the Nose take's, and both analyses record the same identity."""

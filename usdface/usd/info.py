@@ -150,7 +150,10 @@ def format_description(d: dict) -> list[str]:
     if d["subLayers"]:
         lines.append(f"  subLayers: {', '.join(d['subLayers'])}")
     if d["provenance"]:
-        lines.append(f"  written by usdface {d['provenance'].get('usdfaceVersion')} ({d['provenance'].get('processor')})")
+        prov = d["provenance"]
+        # revision: how many times the processor's algorithms or defaults changed (usdface.revisions)
+        made_by = f", revision {prov['revision']}" if prov.get("revision") else ""
+        lines.append(f"  written by usdface {prov.get('usdfaceVersion')} ({prov.get('processor')}{made_by})")
         recorded = describe_identity(d["provenance"].get("identity"))
         if recorded:
             lines.append(f"  belongs to: {recorded}")
