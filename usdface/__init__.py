@@ -4,7 +4,7 @@ Importing usdface registers its USD schemas (:func:`register_schemas`; the schem
 generated files: :mod:`usdface.usd.schemas`). The command line is :mod:`usdface.console`, the
 Python API :mod:`usdface.api`, the processors' declarations :mod:`usdface.registry`.
 """
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 import warnings  # noqa: E402
 from pathlib import Path  # noqa: E402

@@ -59,6 +59,8 @@ def stripped(src, name):
     data = dict(layer.customLayerData)
     prov = dict(data["usdface"])
     prov.pop("identity", None)
+    prov.pop("revision", None)
+    prov["usdfaceVersion"] = "0.2.0"
     data["usdface"] = prov
     layer.customLayerData = data
     layer.Save()
