@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import FormatError, InputError, OptionError, UsdFaceError
 from ..inputfiles import check_input_file
+from .native_output import native_stderr_to_log
 
 __all__ = ["IMAGE_SUFFIXES", "FLOAT_MAP_SUFFIXES", "read_image", "write_image", "read_float_map",
            "write_float_map", "check_image_output"]
@@ -92,7 +93,8 @@ def read_image(path, *, gray: bool = False, rgb: bool = False) -> np.ndarray:
     cv2 = _cv2()
     p = check_input_file(path, label=f"image {path}")
     data = np.fromfile(str(p), dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    with native_stderr_to_log(f"image {p}"):  # libpng's warnings (usdface.io.native_output)
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if img is None:
         raise InputError(f"image {p}: cannot be read as an image (expected {', '.join(IMAGE_SUFFIXES)})")
     if img.ndim == 3 and img.shape[2] == 4:
@@ -247,7 +249,8 @@ def read_float_map(path, *, key: str | None = None) -> np.ndarray:
         a = load_npz(p, label=f"float map {p}")[key or names[0]]
     else:
         cv2 = _cv2()
-        a = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        with native_stderr_to_log(f"float map {p}"):
+            a = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
         if a is None:
             raise InputError(f"float map {p}: cannot be read")
     a = np.asarray(a, dtype=np.float32)
