@@ -12,12 +12,12 @@ Every write is atomic: a temporary file in the destination folder, then ``os.rep
 from __future__ import annotations
 
 import os
-import secrets
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FormatError, InputError, OptionError, UsdFaceError
+from ..fileutil import atomic_path
 from ..inputfiles import check_input_file
 from .native_output import native_stderr_to_log
 
@@ -43,17 +43,6 @@ def _oiio():
         raise UsdFaceError("EXR files need OpenImageIO: pip install OpenImageIO "
                            "(or write the map as .tif, .pfm or .npy)") from exc
     return oiio
-
-
-def _tmp_for(path: Path) -> Path:
-    return path.with_name(f".{path.stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{path.suffix}")
-
-
-def _replace(tmp: Path, path: Path) -> None:
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(tmp, 0o666 & ~mask)
-    os.replace(tmp, path)
 
 
 def check_image_output(path, *, suffixes=IMAGE_SUFFIXES, option: str = "-o") -> Path:
@@ -127,13 +116,8 @@ def write_image(path, image: np.ndarray, *, rgb: bool = False) -> Path:
     ok, buf = cv2.imencode(p.suffix.lower(), np.ascontiguousarray(img))
     if not ok:
         raise InputError(f"could not encode {p}")
-    tmp = _tmp_for(p)
-    try:
+    with atomic_path(p) as tmp:
         buf.tofile(str(tmp))
-        _replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return p
 
 
@@ -181,9 +165,8 @@ def write_float_map(path, values: np.ndarray, *, option: str = "--disparity") ->
     a = np.asarray(values, dtype=np.float32)
     if a.ndim != 2:
         raise OptionError(f"{option} {p}: expected a 2-D map; got shape {a.shape}")
-    tmp = _tmp_for(p)
     suffix = p.suffix.lower()
-    try:
+    with atomic_path(p) as tmp:
         if suffix == ".exr":
             oiio = _oiio()
             spec = oiio.ImageSpec(a.shape[1], a.shape[0], 1, oiio.FLOAT)
@@ -206,10 +189,6 @@ def write_float_map(path, values: np.ndarray, *, option: str = "--disparity") ->
         else:
             with open(tmp, "wb") as f:
                 np.save(f, a)
-        _replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return p
 
 

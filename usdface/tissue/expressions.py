@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -201,11 +200,9 @@ def read_timeline(path) -> Timeline:
 
 def write_timeline(path, timeline: Timeline) -> Path:
     """Write a timeline JSON file (atomically)."""
-    p = Path(path)
-    tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
-    tmp.write_text(json.dumps(timeline.to_dict(), indent=1) + "\n", encoding="utf-8")
-    os.replace(tmp, p)
-    return p
+    from ..fileutil import write_text_atomic
+
+    return write_text_atomic(path, json.dumps(timeline.to_dict(), indent=1) + "\n")
 
 
 def expression_timeline(name: str, muscle_names, *, rate: float = 24.0, ramp_frames: int = 12,
