@@ -179,15 +179,10 @@ class Timeline:
 
 def read_timeline(path) -> Timeline:
     """Read a timeline JSON file (see the module docstring)."""
+    from ..inputfiles import read_json
+
     p = Path(path)
-    if not p.is_file():
-        raise InputError(f"timeline {p}: no such file")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"timeline {p}: cannot be read ({e})") from None
-    except json.JSONDecodeError as e:
-        raise FormatError(f"timeline {p}: not valid JSON (line {e.lineno}: {e.msg})") from None
+    data = read_json(p, label=f"timeline {p}")  # a regular file, bounded size and nesting, UTF-8
     if not isinstance(data, dict):
         raise FormatError(f"timeline {p}: expected a JSON object with \"rate\" and \"keys\"")
     extra = sorted(set(data) - {"rate", "keys", "frames", "format", "comment"})
