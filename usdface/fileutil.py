@@ -431,6 +431,13 @@ def _errno_of(exc: BaseException | None) -> int | None:
     return None
 
 
+def os_error_cause(exc: BaseException) -> str:
+    """Why an operation failed, in a few words, from the error alone (no path to probe: a standard
+    stream, a pipe)."""
+    number = _errno_of(exc)
+    return _CAUSES.get(number) or getattr(exc, "strerror", None) or _short(str(exc)) or type(exc).__name__
+
+
 def failure_cause(path: str | os.PathLike, exc: BaseException | None = None, *, writing: bool = True) -> str:
     """Why writing (or reading) ``path`` failed, in a few words: from the error number, else from
     the message (USD's errors carry none), else, for a write, from the file system of ``path``'s

@@ -222,6 +222,17 @@ def test_a_closed_pipe_ends_the_output_quietly(tmp_path):
     assert err == ""
 
 
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_a_full_standard_output_is_one_line(tmp_path):
+    """`usdface info --json FILE > /dev/full` (a full disk under a redirected output): one line
+    naming the standard output and the cause, exit 1; was a 14-line OSError traceback."""
+    with open("/dev/full", "wb") as full:
+        p = subprocess.run([sys.executable, "-m", "usdface", "info", "--json", str(SA / "capture" / "JawMoCap.usdc")],
+                           stdout=full, stderr=subprocess.PIPE, timeout=60, cwd=tmp_path)
+    assert p.returncode == 1
+    assert p.stderr.decode() == "usdface info: error: cannot write the standard output: disk full\n"
+
 def test_sigkill_mid_commit_then_the_next_run_repairs(old_shot, tmp_path, capsys):
     out = tmp_path / "shot"
     shutil.copytree(old_shot, out)

@@ -170,4 +170,12 @@ def _run(args, processor, name: str, parser) -> int:
         # shell's tools do on SIGPIPE (Python would print a traceback when it flushes at exit)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        # the output cannot take the result (`> /dev/full`, a full disk, a quota): one line; what is
+        # still buffered goes nowhere, so Python's flush at exit cannot print a traceback
+        from ..fileutil import os_error_cause
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        print(f"{name}: error: cannot write the standard output: {os_error_cause(exc)}", file=sys.stderr)
+        return 1
     return int(result.exit_code)
