@@ -1,11 +1,18 @@
-"""The attempts of issue 12 (items 1-4, 8) replayed against a usdface source tree: outputs that
-overwrite inputs, partial or mixed results, batch paths, faults that used to print tracebacks;
-then the hostile inputs to every reader of issue 20 (benchmarks/hostile_readers.py: exit code,
-stderr lines, inputs unchanged, files left behind).
+"""Hostile attempts replayed against a usdface source tree, one markdown table per section:
 
-    python benchmarks/fault_attempts.py                       # this tree
-    python benchmarks/fault_attempts.py --code /path/to/old   # another checkout (the baseline)
-    python benchmarks/fault_attempts.py --section readers     # only the readers' attempts
+- ``readers``: issue 20's hostile files to every reader (benchmarks/hostile_readers.py);
+- ``commands``: issue 20's attempts on commands (outputs that are inputs, layers of another mesh,
+  closed and full standard output, SIGINT/SIGTERM/SIGHUP/SIGKILL to every writer and to batch,
+  250-byte names, misleading messages, hostile manifests/seeds/timelines; benchmarks/hostile_commands.py);
+- ``issue12``: the attempts of issue 12 (items 1-4, 8): outputs that overwrite inputs, partial or
+  mixed results, batch paths, faults that used to print tracebacks.
+
+Every row: exit code, stderr lines, traceback, inputs' sha256 unchanged, temporaries left, handled.
+
+    python benchmarks/fault_attempts.py                         # this tree, every section
+    python benchmarks/fault_attempts.py --tree /tmp/base        # another checkout (the baseline:
+                                                                #   git worktree add /tmp/base 9e2e68a)
+    python benchmarks/fault_attempts.py --section commands      # one section
 
 Each attempt runs the real command line (``python -m usdface``, PYTHONPATH = the tree) in a
 scratch folder and prints one table row: exit code, whether a traceback reached the user, what
@@ -483,25 +490,35 @@ ATTEMPTS = [
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--code", default=str(REPO), help="usdface source tree to test (default: this one)")
+    ap.add_argument("--tree", "--code", dest="code", default=str(REPO),
+                    help="usdface source tree to test (default: this one); the inputs come from this tree's sample_assets")
     ap.add_argument("--scratch", default="/tmp/usdface-fault-attempts")
-    ap.add_argument("--only", help="run the attempts whose function name (readers: description) contains this")
-    ap.add_argument("--section", choices=("all", "issue12", "readers"), default="all",
-                    help="issue 12's attempts, issue 20's hostile readers, or both (default)")
+    ap.add_argument("--only", help="run the attempts whose description (issue 12: function name) contains this")
+    ap.add_argument("--section", choices=("all", "issue12", "readers", "commands"), default="all",
+                    help="issue 20's hostile readers, its attempts on commands, issue 12's attempts, or all (default)")
+    ap.add_argument("--before", help="a second tree (e.g. the 0.2 release) to run issue 20's sections against too; "
+                                     "prints both tables and the before/after table per case of issue 20")
     args = ap.parse_args()
     scratch = Path(args.scratch)
     shutil.rmtree(scratch, ignore_errors=True)
     scratch.mkdir(parents=True)
     c = Ctx(Path(args.code).resolve(), scratch)
-    print(f"usdface from {c.code}\n")
-    handled = total = 0
-    if args.section in ("all", "readers"):
-        from hostile_readers import table
+    counts = {}
+    sections = [s for s in ("readers", "commands") if args.section in ("all", s)]
+    if sections:
+        from before_after import issue20_rows, print_before_after
 
-        handled, total = table(c.code, scratch, args.only)
-        print(f"\n{handled}/{total} hostile readers' attempts handled\n")
-        if args.section == "readers":
-            return 0
+        rows = issue20_rows(c.code, scratch / "after", sections, args.only)
+        if args.before:
+            before = Path(args.before).resolve()
+            print_before_after(issue20_rows(before, scratch / "before", sections, args.only), rows, str(before),
+                               str(c.code))
+        for s in sections:
+            part = [r for r in rows if r["section"] == s]
+            counts[s] = (sum(r["ok"] for r in part), len(part))
+    if args.section not in ("all", "issue12"):
+        return 0
+    print(f"\n## Issue 12's attempts, usdface from {c.code}\n")
     print("| class | attempt | outcome | handled |")
     print("|---|---|---|---|")
     handled = total = 0
@@ -516,7 +533,11 @@ def main() -> int:
         handled += bool(ok)
         verdict = "skipped" if ok is None else ("yes" if ok else "**no**")
         print(f"| {klass} | {what} | {outcome.replace('|', '/')} | {verdict} |", flush=True)
+    counts["issue12"] = (handled, total)
     print(f"\n{handled}/{total} handled")
+    if len(counts) > 1:
+        print("\n" + ", ".join(f"{k}: {h}/{t}" for k, (h, t) in counts.items())
+              + f"; all: {sum(h for h, _ in counts.values())}/{sum(t for _, t in counts.values())} handled")
     return 0
 
 

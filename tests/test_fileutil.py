@@ -165,3 +165,80 @@ def test_the_next_writer_of_an_output_removes_what_a_killed_one_left(tmp_path):
     assert not left.exists() and live.exists() and other.exists()
     assert (tmp_path / "cap.usdc").read_text() == "whole"
     assert temporary_path(tmp_path / "other.usdc").name.startswith(".other.tmp-") and not other.exists()
+
+
+def test_dead_writers_leftovers_of_every_kind_are_removed(tmp_path):
+    """What a killed writer can leave of ``anim.usdc``: its temporary, the temporary USD saves that
+    one through (``<stem>.XXXXXX``), a writer-chosen suffix (ezc3d's ``.c3d`` for ``take.C3D``) and a
+    temporary folder (a report's media); all removed by the next writer, live ones kept."""
+    from usdface.fileutil import HOST_TAG, atomic_path, remove_dead_temporaries, temporaries_of
+
+    dead = _dead_pid()
+    stem = f".anim.tmp-{dead}@{HOST_TAG}-0badcafe"
+    files = [f"{stem}.usdc", f"{stem}.9pgJv5", f".take.tmp-{dead}@{HOST_TAG}-0badcafe.c3d"]
+    for name in files:
+        (tmp_path / name).write_text("partial")
+    folder = tmp_path / f".r_media.tmp-{dead}@{HOST_TAG}-0badcafe"
+    (folder / "sub").mkdir(parents=True)
+    (folder / "sub" / "shot.mp4").write_bytes(b"x")
+    live = tmp_path / f".anim.tmp-{os.getpid()}@{HOST_TAG}-00c0ffee.9pgJv5"
+    live.write_text("being written")
+    (tmp_path / "link").symlink_to(tmp_path)
+    (tmp_path / f".anim.tmp-{dead}@{HOST_TAG}-0badcafe.usda").symlink_to(tmp_path / "link")  # never followed
+    assert {p.name for p in temporaries_of(tmp_path / "anim.usdc")} == {files[0], files[1], live.name}
+    assert {p.name for p in remove_dead_temporaries(tmp_path / "anim.usdc")} == {files[0], files[1]}
+    assert live.exists()
+    with atomic_path(tmp_path / "take.C3D", suffix=".c3d") as tmp:
+        assert tmp.name.endswith(".c3d") and tmp.name.startswith(".take.tmp-")
+        tmp.write_text("c3d")
+    assert (tmp_path / "take.C3D").read_text() == "c3d" and not (tmp_path / files[2]).exists()
+    assert remove_dead_temporaries(tmp_path / "r_media") == [folder] and not folder.exists()
+    assert (tmp_path / "link").is_symlink()
+
+
+def test_atomic_path_keeps_the_old_file_on_a_failure_or_an_interruption(tmp_path):
+    from usdface.fileutil import atomic_path
+
+    out = tmp_path / "d.npy"
+    out.write_text("old")
+    for exc in (ValueError("encoder"), KeyboardInterrupt()):
+        with pytest.raises(type(exc)):
+            with atomic_path(out) as tmp:
+                tmp.write_text("half")
+                raise exc
+        assert out.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["d.npy"]
+    with pytest.raises(WriteError, match=r"cannot write .*d\.npy: no such file or folder"):
+        with atomic_path(out):
+            pass  # the writer wrote nothing
+    with atomic_path(out) as tmp:
+        tmp.write_text("new")
+    assert out.read_text() == "new" and oct(out.stat().st_mode & 0o777) != "0o600"
+
+
+def test_staged_outputs_commit_is_not_stopped_half_way(tmp_path):
+    """SIGTERM arriving during StagedOutputs.commit waits for the renames, then stops the process."""
+    import signal
+    import subprocess
+    import sys
+
+    code = (
+        "import os, signal, sys\n"
+        "from usdface.errors import Interrupted\n"
+        "from usdface.fileutil import StagedOutputs\n"
+        "def stop(signum, frame): raise Interrupted(signum)\n"
+        "signal.signal(signal.SIGTERM, stop)\n"
+        "real = os.replace\n"
+        "def replace(a, b):\n"
+        "    real(a, b)\n"
+        "    os.kill(os.getpid(), signal.SIGTERM)   # after the first of the two renames\n"
+        "os.replace = replace\n"
+        "try:\n"
+        "    with StagedOutputs() as s:\n"
+        "        s.path('a.txt').write_text('new'); s.path('b.txt').write_text('new'); s.commit()\n"
+        "except Interrupted as e:\n"
+        "    sys.exit(e.exit_code)\n")
+    for name in ("a.txt", "b.txt"):
+        (tmp_path / name).write_text("old")
+    p = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 128 + signal.SIGTERM, p.stderr
+    assert [(q.name, q.read_text()) for q in sorted(tmp_path.iterdir())] == [("a.txt", "new"), ("b.txt", "new")]

@@ -59,3 +59,43 @@ def test_first_beyond_float32():
     assert first_beyond_float32(np.array([[1.0, np.nan], [3e38, -3e38]])) is None
     assert first_beyond_float32(np.array([[1.0, np.nan], [3.5e38, np.inf]])) == (1, 0)
     assert first_beyond_float32([0.0, -np.inf]) == (1,)
+
+
+# -- text, TOML: the bounded readers every structured input goes through ---------------------------
+
+def test_text_inputs_are_bounded_before_they_are_read(tmp_path):
+    from usdface.inputfiles import MAX_TEXT_BYTES, read_text_file
+
+    huge = tmp_path / "huge.toml"
+    with open(huge, "wb") as f:  # sparse: the size is refused before a byte is read
+        f.truncate(MAX_TEXT_BYTES + 1)
+    with pytest.raises(FormatError, match=r"^manifest .*huge\.toml: 67,108,865 bytes; a usdface TOML input is at most "
+                                          r"67,108,864 bytes$"):
+        read_text_file(huge, label=f"manifest {huge}", kind="TOML")
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(b'[batch]\nsummary = "s\xe9.json"\n')
+    with pytest.raises(FormatError, match=r"latin\.toml: not UTF-8 text \(byte 0xe9 at line 2\); TOML files are UTF-8"):
+        read_text_file(latin, kind="TOML")
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbfa = 1\n")
+    assert read_text_file(bom) == "a = 1\n"
+    os.mkfifo(tmp_path / "pipe.toml")
+    with pytest.raises(InputError, match=r"pipe\.toml: is a named pipe \(FIFO\), not a regular file"):
+        read_text_file(tmp_path / "pipe.toml")
+
+
+@pytest.mark.parametrize("text", ["a = " + "[" * 100000, "a = " + "{b = " * 100000,
+                                  "[" + ".".join(["a"] * 100) + "]\nx = 1\n", "a = " + "[" * 65 + "]" * 65])
+def test_toml_nesting_is_bounded(text):
+    from usdface.inputfiles import parse_toml
+
+    with pytest.raises(FormatError, match=r"^manifest m\.toml: nested deeper than 64 levels; not a usdface TOML file$"):
+        parse_toml(text, where="manifest m.toml")
+
+
+def test_toml_errors_keep_tomllib_s_line():
+    from usdface.inputfiles import parse_toml
+
+    assert parse_toml("[batch]\nworkers = 2\n", where="m") == {"batch": {"workers": 2}}
+    with pytest.raises(FormatError, match=r"^m: not valid TOML \(.*line 2, column"):
+        parse_toml("[batch]\nworkers = \n", where="m")

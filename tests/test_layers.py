@@ -11,7 +11,8 @@ Layers, from the top; an import may only point down (or stay in its layer)::
     compute       capture mesh distance rbf skel blendshape tissue scan tracking evaluation preview
                   playblast media report
     io            usdface.io
-    base          errors units fileutil progress numba_cache memory model revisions, and the package root
+    base          errors units fileutil temporaries progress numba_cache memory model revisions, and the package
+                  root
 
 Also: no cycle between usdface's packages; pxr only in usdface/usd/ (and the schema registration
 in usdface/__init__.py); cv2 only in io/, tracking/, scan/ and preview/; compute packages own their
@@ -41,7 +42,7 @@ LAYERS = (
                  "usdface.blendshape", "usdface.tissue", "usdface.scan", "usdface.tracking", "usdface.evaluation",
                  "usdface.preview", "usdface.playblast", "usdface.media", "usdface.report")),
     ("io", ("usdface.io",)),
-    ("base", ("usdface.errors", "usdface.units", "usdface.fileutil", "usdface.progress", "usdface.numba_cache",
+    ("base", ("usdface.errors", "usdface.units", "usdface.fileutil", "usdface.temporaries", "usdface.progress", "usdface.numba_cache",
               "usdface.memory", "usdface.model", "usdface.cache", "usdface.lazy", "usdface.inputfiles",
               "usdface.findings", "usdface.revisions", "usdface")),
 )

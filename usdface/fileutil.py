@@ -1,9 +1,9 @@
 """File helpers shared by every writer (no pxr here).
 
 - content digests and durable renames (:func:`file_digest`, :func:`fsync_file`, :func:`fsync_dir`);
-- atomic writes of plain files (:func:`atomic_write`) and temporary names that say who owns them
-  (:func:`temporary_path`, :func:`temporary_owner`), so a later run can tell a dead process's
-  leftovers from a live one's;
+- atomic writes of plain files (:func:`atomic_write`, or :func:`atomic_path` for a writer that
+  takes a file name) and temporary names that say who owns them (:func:`temporary_path`,
+  :func:`temporary_owner`), so the next writer of an output removes what a dead process left of it;
 - the rule that no output is an input (:func:`same_file_problems`, :func:`refuse_overwriting_inputs`):
   paths compared after resolving ``..`` and symbolic links, existing files also by device and inode
   (hard links, bind mounts);
@@ -27,24 +27,15 @@ import fnmatch
 import hashlib
 import os
 import re
-import secrets
-import socket
 from pathlib import Path
+
+from .temporaries import (HOST_TAG, NAME_MAX, TEMPORARY_MAX_AGE, TEMPORARY_NAME_MAX,  # noqa: F401 - re-exported
+                          is_temporary_name, owner_is_dead, process_alive, remove_dead_temporaries,
+                          temporaries_of, temporary_owner, temporary_path)
 
 #: environment variable of the fault-injection test hook (see the module docstring)
 FAULT_ENV = "USDFACE_TEST_FAULT"
 FAULT_POINTS = ("create", "save", "replace", "commit")
-#: temporaries whose owner cannot be asked (another host) are removed once older than this (seconds)
-TEMPORARY_MAX_AGE = 24 * 3600.0
-#: this machine's name as it appears in temporary names (letters, digits and _ only)
-HOST_TAG = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname() or "localhost")[:48] or "localhost"
-# ".<name>.tmp-<pid>[@<host>][-<token>][.<suffix>]", ".usdface-run-<pid>[@<host>][-<token>]" (and the
-# cache's ".tmp-" / ".trash-" folders);
-# names written before host tags existed (".x.tmp-<pid>-<token>.usdc") parse with host None
-_OWNER_RE = re.compile(r"(?:\.tmp-|^\.trash-|^\.usdface-run-)(?P<pid>\d+)(?:@(?P<host>[A-Za-z0-9_]+))?(?:-[0-9a-f]+)?"
-                       r"(?:\.[A-Za-z0-9]+)?$")
-_TEMP_FILE_RE = re.compile(r"^\..+\.tmp-")
-_TEMP_NAME_RE = re.compile(r"^\.(?P<prefix>.+?)\.tmp-\d+(?:@[A-Za-z0-9_]+)?-[0-9a-f]+")
 
 
 def file_digest(path: str | os.PathLike) -> str:
@@ -97,136 +88,6 @@ def set_default_mode(path: str | os.PathLike) -> None:
     os.chmod(path, 0o666 & ~mask)
 
 
-# -- temporaries and their owners ----------------------------------------------------------------
-
-#: the longest file name most file systems take (bytes)
-NAME_MAX = 255
-#: the longest temporary name usdface makes: USD saves a layer through a temporary of its own named
-#: after ours (``.<our name>.XXXXXX``), which must fit in NAME_MAX too
-TEMPORARY_NAME_MAX = NAME_MAX - 40
-
-
-def temporary_path(path: str | os.PathLike) -> Path:
-    """A temporary name beside ``path`` (same suffix, so the same file format), naming its owner:
-    ``.<stem>.tmp-<pid>@<host>-<token><suffix>``, the stem shortened so that the name fits in
-    :data:`TEMPORARY_NAME_MAX` bytes whatever the output's name. Every temporary usdface writes is named so
-    (run folders ``.usdface-run-<pid>@<host>-<token>``, cache entries ``.tmp-<pid>@<host>-<token>``).
-
-    Temporaries of ``path`` left by a dead process (SIGKILL, a power cut) are removed first: the
-    next command writing an output tidies what an earlier one left of it.
-    """
-    p = Path(path)
-    remove_dead_temporaries(p)
-    tail = f".tmp-{os.getpid()}@{HOST_TAG}-{secrets.token_hex(4)}{p.suffix}"
-    return p.with_name("." + _name_prefix(p.stem, TEMPORARY_NAME_MAX - 1 - len(os.fsencode(tail))) + tail)
-
-
-def _name_prefix(stem: str, budget: int) -> str:
-    """The longest start of ``stem`` that fits in ``budget`` bytes (whole characters; never empty)."""
-    encoded = os.fsencode(stem)[:max(budget, 1)]
-    while encoded:
-        try:
-            return os.fsdecode(encoded) if encoded.decode("utf-8") else "_"
-        except UnicodeDecodeError:
-            encoded = encoded[:-1]  # a character cut in two
-    return "_"
-
-
-def temporaries_of(path: str | os.PathLike) -> list[Path]:
-    """The temporary files beside ``path`` that are (or were) being written as ``path``."""
-    p = Path(path)
-    try:
-        entries = list(os.scandir(p.parent if str(p.parent) else "."))
-    except OSError:
-        return []
-    found = []
-    for e in entries:
-        m = _TEMP_NAME_RE.match(e.name)
-        if m and e.name.endswith(p.suffix) and p.stem.startswith(m.group("prefix")) and \
-                e.is_file(follow_symlinks=False):
-            found.append(Path(e.path))
-    return found
-
-
-def remove_dead_temporaries(path: str | os.PathLike) -> list[Path]:
-    """Remove the temporaries of ``path`` whose owner is dead (this host) or, for another host's,
-    older than :data:`TEMPORARY_MAX_AGE`; returns them. Live owners' temporaries stay."""
-    import time
-
-    removed = []
-    for t in temporaries_of(path):
-        try:
-            mtime = t.stat().st_mtime
-        except OSError:
-            continue
-        dead = owner_is_dead(t.name, mtime)
-        if dead or (dead is None and time.time() - mtime > TEMPORARY_MAX_AGE):
-            with contextlib.suppress(OSError):
-                t.unlink()
-                removed.append(t)
-    return removed
-
-
-def is_temporary_name(name: str) -> bool:
-    """Whether ``name`` is a usdface temporary file name (``.<name>.tmp-...``)."""
-    return bool(_TEMP_FILE_RE.match(name))
-
-
-def temporary_owner(name: str) -> tuple[int, str | None] | None:
-    """(pid, host tag or None) of a temporary file or run folder name; None when it names no owner."""
-    m = _OWNER_RE.search(name)
-    if m is None:
-        return None
-    return int(m.group("pid")), m.group("host")
-
-
-def process_alive(pid: int, *, since: float | None = None) -> bool:
-    """Whether process ``pid`` of this machine is alive (and, with ``since``, started before it).
-
-    A process that started after ``since`` (a temporary's modification time) cannot have written
-    the temporary: the pid was reused, and the owner is dead.
-    """
-    if pid <= 0:
-        return False
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # alive, another user's
-        pass
-    except OSError:
-        return True
-    if since is not None:
-        started = _process_start_time(pid)
-        if started is not None and started > since + 2.0:
-            return False
-    return True
-
-
-def _process_start_time(pid: int) -> float | None:
-    """Start time (seconds since the epoch) of a process, from /proc; None where unknown."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            fields = f.read().rsplit(b")", 1)[1].split()
-        ticks = int(fields[19])  # field 22 of stat(5); fields here start at field 3
-        with open("/proc/stat", "rb") as f:
-            boot = next(int(line.split()[1]) for line in f if line.startswith(b"btime"))
-        return boot + ticks / os.sysconf("SC_CLK_TCK")
-    except (OSError, ValueError, IndexError, StopIteration):
-        return None
-
-
-def owner_is_dead(name: str, mtime: float) -> bool | None:
-    """True when a temporary's owner is known dead (this host, no such process), False when it is
-    alive, None when it cannot be told (another host, or a name without an owner)."""
-    owner = temporary_owner(name)
-    if owner is None or owner[1] is None or owner[1] != HOST_TAG:
-        return None
-    return not process_alive(owner[0], since=mtime)
-
-
 # -- atomic writes and fault injection ------------------------------------------------------------
 
 def inject_fault(point: str, path: str | os.PathLike) -> None:
@@ -266,6 +127,40 @@ def atomic_write(path: str | os.PathLike, mode: str = "w", *, encoding: str | No
             f.flush()
             inject_fault("save", path)
             os.fsync(f.fileno())
+        set_default_mode(tmp)
+        inject_fault("replace", path)
+        os.replace(tmp, path)
+        fsync_dir(path.parent)
+    except OSError as exc:
+        raise write_error(path, exc) from None
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, *, suffix: str | None = None):
+    """A temporary path (:func:`temporary_path`) for a writer that takes a file name (USD, ezc3d,
+    OpenImageIO, a CSV writer), renamed over ``path`` when the ``with`` block succeeds: fsynced,
+    given a plain file's permissions, then the folder fsynced.
+
+    A failure (or SIGINT, SIGTERM, SIGHUP, which raise :class:`~usdface.errors.Interrupted`) leaves
+    ``path`` as it was and removes the temporary; file-system failures become a
+    :class:`~usdface.errors.WriteError` naming ``path``. After a SIGKILL the next writer of ``path``
+    removes the temporary (its name says its owner is dead).
+
+    Examples
+    --------
+    >>> with atomic_path("take.c3d", suffix=".c3d") as tmp:   # doctest: +SKIP
+    ...     c3d.write(str(tmp))
+    """
+    path = Path(os.fspath(path))
+    tmp = temporary_path(path, suffix=suffix)
+    try:
+        inject_fault("create", path)
+        yield tmp
+        inject_fault("save", path)
+        fsync_file(tmp)
         set_default_mode(tmp)
         inject_fault("replace", path)
         os.replace(tmp, path)
@@ -407,6 +302,13 @@ def _errno_of(exc: BaseException | None) -> int | None:
     return None
 
 
+def os_error_cause(exc: BaseException) -> str:
+    """Why an operation failed, in a few words, from the error alone (no path to probe: a standard
+    stream, a pipe)."""
+    number = _errno_of(exc)
+    return _CAUSES.get(number) or getattr(exc, "strerror", None) or _short(str(exc)) or type(exc).__name__
+
+
 def failure_cause(path: str | os.PathLike, exc: BaseException | None = None, *, writing: bool = True) -> str:
     """Why writing (or reading) ``path`` failed, in a few words: from the error number, else from
     the message (USD's errors carry none), else, for a write, from the file system of ``path``'s
@@ -511,8 +413,6 @@ def probe_writable_folder(path: str | os.PathLike, *, what: str) -> Path:
     """The folder of the output ``path``, checked to exist and to take a new file (a temporary file
     is created and removed: permission bits do not tell, root ignores them and read-only mounts
     refuse anyway). Raises InputError naming ``what`` ("movie", "report"...) and the folder."""
-    import tempfile
-
     from .errors import InputError
 
     out = Path(path)
@@ -521,13 +421,44 @@ def probe_writable_folder(path: str | os.PathLike, *, what: str) -> Path:
         raise InputError(f"cannot write {what} {out}: folder {folder} does not exist")
     if out.is_dir():
         raise InputError(f"cannot write {what} {out}: it is a folder")
+    probe = temporary_path(out)  # named for its owner: a SIGKILL between the two calls leaves nothing for long
     try:
-        fd, probe = tempfile.mkstemp(prefix=f".{out.stem}.probe-", dir=folder)
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
     except OSError as exc:  # read-only, permission, disk full: an environment fault (exit 1)
         raise write_error(f"{what} {out}", exc) from None
-    os.close(fd)
     os.unlink(probe)
     return folder
+
+
+@contextlib.contextmanager
+def stop_signals_deferred():
+    """SIGINT, SIGTERM and SIGHUP wait until the block ends (a few renames are never stopped
+    half-way), then act as they would have. Only the main thread can; elsewhere a no-op."""
+    import signal
+    import threading
+
+    from .errors import stop_signals
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = {}
+    try:
+        for s in stop_signals():
+            previous[s] = signal.signal(s, lambda signum, frame: pending.append(signum))
+    except ValueError:  # not the main interpreter
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        yield
+        return
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if pending:
+            signal.raise_signal(pending[0])
 
 
 class StagedOutputs:
@@ -535,8 +466,9 @@ class StagedOutputs:
 
     Each output is written to a temporary name in its own folder (same suffix, so format-by-suffix
     writers such as USD work); :meth:`commit` renames them all into place, and leaving the
-    ``with`` block on an error removes every temporary. A crash between two renames of
-    :meth:`commit` can still leave a subset (renames are atomic one by one, not as a group).
+    ``with`` block on an error or an interruption removes every temporary. SIGINT, SIGTERM and
+    SIGHUP wait for :meth:`commit` to finish (:func:`stop_signals_deferred`); a crash (SIGKILL, a
+    power cut) between two of its renames can still leave a subset.
 
     Examples
     --------
@@ -550,13 +482,22 @@ class StagedOutputs:
         self._pairs: list[tuple[Path, Path]] = []
         self.committed = False
 
-    def path(self, final: str | os.PathLike) -> Path:
-        p = Path(final)
+    def path(self, final):
+        """The temporary to write ``final`` to; a target that is no path (an in-memory layer) is
+        returned as it is (nothing to stage)."""
+        if not isinstance(final, (str, bytes, os.PathLike)):
+            return final
+        p = Path(os.fsdecode(final))
         tmp = temporary_path(p)  # names its owner, so a dead owner's leftovers can be tidied
         self._pairs.append((tmp, p))
         return tmp
 
     def commit(self) -> None:
+        with stop_signals_deferred():
+            self._rename_all()
+        self.committed = True
+
+    def _rename_all(self) -> None:
         try:
             for tmp, final in self._pairs:
                 fsync_file(tmp)
@@ -567,7 +508,6 @@ class StagedOutputs:
                 fsync_dir(final.parent)
         except OSError as exc:
             raise write_error(getattr(exc, "filename", None) or self._pairs[0][1], exc) from None
-        self.committed = True
 
     def __enter__(self) -> "StagedOutputs":
         return self

@@ -7,8 +7,12 @@ allocate without bound or reach a library that does:
   ever; a device or a socket is no file at all; a folder is a usage slip);
 - :func:`check_utf8_path`: a path USD can take (Sdf keeps paths as UTF-8 strings: a name with a
   byte that is not UTF-8 would fail inside it);
+- :func:`read_text_file`: a text input of bounded size that is UTF-8, read in one go (every
+  structured input below starts here);
 - :func:`read_json`: a JSON file of bounded size and nesting, without NaN/Infinity or duplicate
   keys (Python's json reads both silently, keeping the last duplicate);
+- :func:`parse_toml`: TOML text (a batch manifest) of bounded nesting (tomllib recurses, so
+  100000 nested ``[`` raised RecursionError);
 - :func:`first_beyond_float32`: values usdface stores as float32 (every point in a USD layer)
   must be finite float32 numbers; 1e308 would become inf.
 """
@@ -23,8 +27,8 @@ import numpy as np
 
 from .errors import FormatError, InputError
 
-__all__ = ["FLOAT32_MAX", "MAX_JSON_BYTES", "MAX_JSON_DEPTH", "check_input_file", "check_utf8_path",
-           "read_json", "first_beyond_float32", "display_name"]
+__all__ = ["FLOAT32_MAX", "MAX_JSON_BYTES", "MAX_JSON_DEPTH", "MAX_TEXT_BYTES", "check_input_file", "check_utf8_path",
+           "read_text_file", "read_json", "parse_toml", "first_beyond_float32", "display_name"]
 
 #: the largest finite float32 (USD's point and vector arrays are float32)
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -32,6 +36,8 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 MAX_JSON_BYTES = 64 * 1024 * 1024
 #: deepest nesting a usdface JSON input needs is 4 ({"markers": {"A": {"point": [..]}}}); 64 is generous
 MAX_JSON_DEPTH = 64
+#: text inputs (manifests, seeds, timelines...): a manifest of 10,000 shots is about 2 MB
+MAX_TEXT_BYTES = 64 * 1024 * 1024
 
 _KINDS = ((stat.S_ISDIR, "is a folder, not a file"), (stat.S_ISFIFO, "is a named pipe (FIFO), not a regular file"),
           (stat.S_ISCHR, "is a character device, not a regular file"),
@@ -107,6 +113,55 @@ def _depth(value) -> int:
     return deepest
 
 
+def read_text_file(path, *, label: str | None = None, max_bytes: int = MAX_TEXT_BYTES, kind: str = "text") -> str:
+    """The text of an input file, checked before it is read: a readable regular file (a named pipe
+    would block for ever, a device never end: :func:`check_input_file`), at most ``max_bytes``
+    bytes (the size is known before reading), UTF-8 (a byte-order mark is dropped).
+
+    Errors name the file as ``"<label>: "`` and say what was expected; ``kind`` names the format in
+    them ("JSON", "TOML"). InputError: not a readable regular file; FormatError: too large, not UTF-8.
+    """
+    where = _label(path, label)
+    p = check_input_file(path, label=where)
+    size = p.stat().st_size
+    if size > max_bytes:
+        raise FormatError(f"{where}: {size:,} bytes; a usdface {kind} input is at most {max_bytes:,} bytes")
+    try:
+        with open(p, "rb") as f:
+            data = f.read(max_bytes + 1)  # a file that grows while read stops at the limit too
+    except OSError as exc:
+        raise InputError(f"{where}: cannot be read ({exc.strerror or exc})") from None
+    if len(data) > max_bytes:
+        raise FormatError(f"{where}: more than {max_bytes:,} bytes; a usdface {kind} input is at most that")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise FormatError(f"{where}: not UTF-8 text (byte 0x{data[exc.start]:02x} at line {line}); "
+                          f"{kind} files are UTF-8") from None
+
+
+def parse_toml(text: str, *, where: str, max_depth: int = MAX_JSON_DEPTH) -> dict:
+    """Parse TOML ``text`` (read with :func:`read_text_file`) with bounded nesting.
+
+    FormatError ``"<where>: ..."``: not valid TOML (tomllib's message, with its line and column),
+    or nested deeper than ``max_depth`` (arrays, inline tables or dotted keys; tomllib parses
+    nested arrays by recursion, which 100000 ``[`` exhausted).
+    """
+    import tomllib
+
+    too_deep = f"{where}: nested deeper than {max_depth} levels; not a usdface TOML file"
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise FormatError(f"{where}: not valid TOML ({exc})") from None
+    except RecursionError:
+        raise FormatError(too_deep) from None
+    if _depth(data) > max_depth:
+        raise FormatError(too_deep)
+    return data
+
+
 def read_json(path, *, label: str | None = None, max_bytes: int = MAX_JSON_BYTES,
               max_depth: int = MAX_JSON_DEPTH):
     """Read a JSON input file, refusing what Python's json would accept but no usdface file holds.
@@ -117,20 +172,7 @@ def read_json(path, *, label: str | None = None, max_bytes: int = MAX_JSON_BYTES
     InputError: not a readable regular file (:func:`check_input_file`).
     """
     where = _label(path, label)
-    p = check_input_file(path, label=where)
-    size = p.stat().st_size
-    if size > max_bytes:
-        raise FormatError(f"{where}: {size:,} bytes; a usdface JSON input is at most {max_bytes:,} bytes")
-    try:
-        data = p.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{where}: cannot be read ({exc.strerror or exc})") from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise FormatError(f"{where}: not UTF-8 text (byte 0x{data[exc.start]:02x} at line {line}); "
-                          f"JSON files are UTF-8") from None
+    text = read_text_file(path, label=where, max_bytes=max_bytes, kind="JSON")
     if not text.strip():
         raise FormatError(f"{where}: the file is empty (expected a JSON object)")
 

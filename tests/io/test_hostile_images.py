@@ -95,3 +95,46 @@ def test_scan_json_inputs_refuse_what_python_would_read(tmp_path):
     far.write_text('{"nose": {"scan": [1e39, 0, 0]}}')
     with pytest.raises(FormatError, match=r"landmark 'nose': scan must be 3 finite numbers \(float32\)"):
         read_landmarks(far)
+
+
+# -- what C libraries print (issue 20, item 13): never on the user's stderr before usdface's line --
+
+def test_libpng_chatter_goes_to_the_debug_log_not_stderr(tmp_path, capfd, caplog):
+    """OpenCV's libpng prints "libpng warning: iCCP: known incorrect sRGB profile" for the shared
+    astronaut photo and "libpng error: PNG input buffer is incomplete" for a cut PNG, straight to
+    descriptor 2; usdface logs them at debug level instead, naming the file."""
+    import logging
+
+    from tests.conftest import SHARED_DATA
+
+    photo = SHARED_DATA / "images" / "astronaut.png"
+    if not photo.is_file():
+        pytest.skip(f"{photo} not present")
+    caplog.set_level(logging.DEBUG, logger="usdface.io")
+    capfd.readouterr()
+    assert read_image(photo).shape == (512, 512, 3)
+    assert capfd.readouterr().err == ""
+    assert any("libpng warning: iCCP" in r.getMessage() and "astronaut.png" in r.getMessage() for r in caplog.records)
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(photo.read_bytes()[:20000])
+    with pytest.raises(InputError, match=r"image .*cut\.png: cannot be read as an image"):
+        read_image(cut)
+    assert capfd.readouterr().err == ""
+
+
+def test_native_stderr_is_restored_and_nested_blocks_share_one_capture(capfd, caplog):
+    import logging
+
+    from usdface.io.native_output import native_stderr_to_log
+
+    caplog.set_level(logging.DEBUG, logger="usdface.io")
+    capfd.readouterr()
+    with native_stderr_to_log("outer"):
+        os.write(2, b"from C, outer\n")
+        with native_stderr_to_log("inner"):
+            os.write(2, b"from C, inner\n")
+        os.write(2, b"")
+    os.write(2, b"after\n")
+    assert capfd.readouterr().err == "after\n"
+    assert [r.getMessage() for r in caplog.records if r.name == "usdface.io"] == \
+        ["outer: from C, outer", "outer: from C, inner"]

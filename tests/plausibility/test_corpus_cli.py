@@ -177,6 +177,25 @@ def test_stabilisation_that_does_not_help_is_flagged(sample_assets, cli, tmp_pat
     assert "JawMoCap.ma" in warning and "--stabilize M1,M2" in warning
 
 
+def test_a_take_without_head_motion_has_nothing_for_stabilisation_to_reduce(sample_assets, cli, tmp_path, warnings_of):
+    """A 1-frame run: the held-out markers' rigid motion is round-off (1e-14 deg and cm) before and
+    after; it said "stabilisation did not reduce the rigid motion ... rotation 0.00 -> 0.00 deg"."""
+    assert cli("run", "--mesh", sample_assets / "meshes" / "makehuman_hm08_face_cm.obj", "--capture",
+               sample_assets / "capture" / "JawMoCap.ma", "--layout",
+               sample_assets / "layouts" / "makehuman_hm08_face.layout.json", "--method", "euclidean", "--trim", "0",
+               "1", "-o", tmp_path / "one", "-q") == 0
+    assert warnings_of() == []
+    from usdface.capture.plausibility import stabilize_finding
+
+    still = {"max_angle_deg": 8.5e-15, "max_translation": 0.0}
+    moved = {"max_angle_deg": 1.1e-14, "max_translation": 1.9e-14}
+    assert stabilize_finding({"holdout": {"before": still, "after": moved}}, what="t", units="cm") is None
+    worse = stabilize_finding({"holdout": {"before": {"max_angle_deg": 2.82, "max_translation": 0.0},
+                                           "after": {"max_angle_deg": 3.02, "max_translation": 1e-15}}},
+                              what="t", units="cm")
+    assert "rotation 2.82 -> 3.02 deg" in worse.message and "translation" not in worse.message.split(":")[1]
+
+
 # -- bindings --------------------------------------------------------------------------------------
 
 def test_metres_mesh_read_as_cm_with_a_layout(corpus, cli, sample_assets, tmp_path, capsys):

@@ -222,6 +222,40 @@ def test_a_closed_pipe_ends_the_output_quietly(tmp_path):
     assert err == ""
 
 
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_a_full_standard_output_is_one_line(tmp_path):
+    """`usdface info --json FILE > /dev/full` (a full disk under a redirected output): one line
+    naming the standard output and the cause, exit 1; was a 14-line OSError traceback."""
+    with open("/dev/full", "wb") as full:
+        p = subprocess.run([sys.executable, "-m", "usdface", "info", "--json", str(SA / "capture" / "JawMoCap.usdc")],
+                           stdout=full, stderr=subprocess.PIPE, timeout=60, cwd=tmp_path)
+    assert p.returncode == 1
+    assert p.stderr.decode() == "usdface info: error: cannot write the standard output: disk full\n"
+
+
+def test_a_bug_keeps_its_traceback_under_a_line_asking_to_report_it(tmp_path):
+    """An unexpected exception (a bug, not bad input or the environment) is not turned into a
+    tidy line: its traceback stays, after one line saying it is a bug and asking for a report
+    (issue 20: "a bug ... still shows its traceback with a line asking to report it")."""
+    hook = textwrap.dedent("""
+        import sys
+        import usdface.console as console
+        def broken(processor, args):
+            raise ZeroDivisionError("a bug")
+        console.run_command = broken
+        sys.exit(console.main(sys.argv[1:]))
+    """)
+    p = subprocess.run([sys.executable, "-c", hook, "info", str(SA / "capture" / "JawMoCap.usdc")],
+                       capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert p.returncode == 1
+    first, rest = p.stderr.split("\n", 1)
+    from usdface import __version__
+
+    assert first == (f"usdface info: internal error (a bug in usdface {__version__}, not in your input): "
+                     "ZeroDivisionError: a bug; please report it with the traceback below and the command line")
+    assert rest.startswith("Traceback (most recent call last):") and rest.rstrip().endswith("ZeroDivisionError: a bug")
+
 def test_sigkill_mid_commit_then_the_next_run_repairs(old_shot, tmp_path, capsys):
     out = tmp_path / "shot"
     shutil.copytree(old_shot, out)

@@ -71,6 +71,13 @@ def test_bind_layout_and_auto_report_residuals(layers, capsys, cli):
         assert cli("check", out, "-q") == 0
 
 
+def test_info_gives_the_binding_residuals_with_their_units(layers, capsys, cli):
+    """`info` printed a binding's surface residual without units ("median 1.85e-05 max 5.96e-05")
+    beside `run`'s fit residual in cm (issue 20, README items): both now say their units."""
+    assert cli("info", layers["binding_hm08"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"surface residual median [0-9.e+-]+ cm, max [0-9.e+-]+ cm$", out, flags=re.MULTILINE), out
+
 def test_every_written_layer_passes_check(layers, capsys, cli):
     for key in ("mesh_hm08", "mesh_stylized", "mesh_mediapipe", "jaw", "jaw_stab", "binding_hm08"):
         assert cli("check", layers[key]) == 0, capsys.readouterr().out

@@ -93,6 +93,9 @@ FAR_SPAN_FRACTION = 0.5
 MAX_SPANS_PER_SECOND = 6.0
 #: neighbours used by the outlier test
 N_NEIGHBOURS = 6
+#: held-out rigid motion (deg, or capture units) at or below which there is nothing for stabilisation
+#: to reduce: round-off (a 1-frame take measures 1e-14); a micron in metres, far below any head motion
+STILL_MOTION = 1e-6
 #: how many markers / frames a message lists before abbreviating
 _LIST = 6
 
@@ -481,6 +484,8 @@ def stabilize_finding(report_summary: dict, *, what: str, units: str | None) -> 
     for key, label, unit in (("max_angle_deg", "rotation", "deg"), ("max_translation", "translation", units or "units")):
         b, a = before.get(key), after.get(key)
         if b is None or a is None or not (np.isfinite(b) and np.isfinite(a)):
+            continue
+        if b <= STILL_MOTION:  # no motion to reduce (a 1-frame take: round-off, 1e-14, before and after)
             continue
         if a >= b:
             worse.append(f"{label} {b:.2f} -> {a:.2f} {unit}")

@@ -8,7 +8,8 @@ usage (a UsdFaceError; also argparse's own usage errors), 1 a failure while work
 faults included: disk full, read-only folder, permission, out of memory, a USD error, an output
 folder locked by another run; a failed `check`; a batch with a failed shot), 130 interrupted by
 Ctrl-C (SIGINT), 143 stopped by SIGTERM (how farm schedulers stop jobs), 129 by SIGHUP (a closed
-terminal or ssh session), all after removing the partial work.
+terminal or ssh session), all after removing the partial work. A bug (any other exception) keeps
+its traceback, under one line saying it is a bug and asking for a report.
 """
 from __future__ import annotations
 
@@ -158,7 +159,13 @@ def _run(args, processor, name: str, parser) -> int:
         from ..fileutil import describe_exception, is_environment_fault
 
         if not is_environment_fault(exc):
-            raise  # a bug: the traceback is what a report needs
+            # a bug: the traceback is what a report needs, under one line saying so
+            from .. import __version__
+
+            print(f"{name}: internal error (a bug in usdface {__version__}, not in your input): "
+                  f"{type(exc).__name__}: {exc}; please report it with the traceback below and the command line",
+                  file=sys.stderr, flush=True)
+            raise
 
         print(f"{name}: error: {describe_exception(exc)}", file=sys.stderr)
         return 1
@@ -170,4 +177,12 @@ def _run(args, processor, name: str, parser) -> int:
         # shell's tools do on SIGPIPE (Python would print a traceback when it flushes at exit)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        # the output cannot take the result (`> /dev/full`, a full disk, a quota): one line; what is
+        # still buffered goes nowhere, so Python's flush at exit cannot print a traceback
+        from ..fileutil import os_error_cause
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        print(f"{name}: error: cannot write the standard output: {os_error_cause(exc)}", file=sys.stderr)
+        return 1
     return int(result.exit_code)

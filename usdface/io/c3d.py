@@ -24,7 +24,6 @@ from __future__ import annotations
 import math
 import os
 import struct
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -202,17 +201,12 @@ def write_c3d(path, capture: Capture) -> None:
     c3d["header"]["points"]["first_frame"] = int(capture.start_frame)
 
     target = Path(os.fspath(path))
-    # ezc3d appends ".c3d" unless the name ends with it (case-sensitively): write a temp name it
-    # accepts, then rename, which also makes the write atomic.
-    handle, temp = tempfile.mkstemp(suffix=".c3d", prefix=".tmp-", dir=target.parent or ".")
-    os.close(handle)
-    try:
-        c3d.write(temp)
-        os.replace(temp, target)
-        os.chmod(target, 0o644)
-    finally:
-        if os.path.exists(temp):
-            os.unlink(temp)
+    # ezc3d appends ".c3d" unless the name ends with it (case-sensitively): write a temporary name
+    # it accepts (the one scheme of usdface.fileutil), renamed over the target when complete
+    from ..fileutil import atomic_path
+
+    with atomic_path(target, suffix=".c3d") as temp:
+        c3d.write(str(temp))
 
 
 def _labels(point) -> list[str]:

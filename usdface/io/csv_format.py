@@ -182,7 +182,7 @@ def write_csv(path, capture: Capture, *, dims: int | None = None, form: str = "w
     Parameters
     ----------
     path : str or os.PathLike
-        Output file (overwritten).
+        Output file (replaced atomically: :func:`usdface.fileutil.atomic_path`).
     capture : Capture
         Positions (F, M, 3); invalid samples are written as empty cells.
     dims : {2, 3}, optional
@@ -204,7 +204,9 @@ def write_csv(path, capture: Capture, *, dims: int | None = None, form: str = "w
     axes = "xyz"[:dims]
     frames = [str(capture.start_frame + f) for f in range(capture.n_frames)]
     positions = capture.positions[:, :, :dims]
-    with open(os.fspath(path), "w", newline="", encoding="utf-8") as out:
+    from ..fileutil import atomic_path
+
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as out:
         out.write("# " + " ".join(declaration) + "\n")
         writer = csv.writer(out, lineterminator="\n")
         if form == "wide":

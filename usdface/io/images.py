@@ -11,15 +11,14 @@ Every write is atomic: a temporary file in the destination folder, then ``os.rep
 """
 from __future__ import annotations
 
-import os
-import secrets
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FormatError, InputError, OptionError, UsdFaceError
-from ..fileutil import check_output_file
+from ..fileutil import atomic_path, check_output_file
 from ..inputfiles import check_input_file
+from .native_output import native_stderr_to_log
 
 __all__ = ["IMAGE_SUFFIXES", "FLOAT_MAP_SUFFIXES", "read_image", "write_image", "read_float_map",
            "write_float_map", "check_image_output"]
@@ -43,17 +42,6 @@ def _oiio():
         raise UsdFaceError("EXR files need OpenImageIO: pip install OpenImageIO "
                            "(or write the map as .tif, .pfm or .npy)") from exc
     return oiio
-
-
-def _tmp_for(path: Path) -> Path:
-    return path.with_name(f".{path.stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{path.suffix}")
-
-
-def _replace(tmp: Path, path: Path) -> None:
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(tmp, 0o666 & ~mask)
-    os.replace(tmp, path)
 
 
 def check_image_output(path, *, suffixes=IMAGE_SUFFIXES, option: str = "-o") -> Path:
@@ -85,7 +73,8 @@ def read_image(path, *, gray: bool = False, rgb: bool = False) -> np.ndarray:
     cv2 = _cv2()
     p = check_input_file(path, label=f"image {path}")
     data = np.fromfile(str(p), dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    with native_stderr_to_log(f"image {p}"):  # libpng's warnings (usdface.io.native_output)
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if img is None:
         raise InputError(f"image {p}: cannot be read as an image (expected {', '.join(IMAGE_SUFFIXES)})")
     if img.ndim == 3 and img.shape[2] == 4:
@@ -118,13 +107,8 @@ def write_image(path, image: np.ndarray, *, rgb: bool = False) -> Path:
     ok, buf = cv2.imencode(p.suffix.lower(), np.ascontiguousarray(img))
     if not ok:
         raise InputError(f"could not encode {p}")
-    tmp = _tmp_for(p)
-    try:
+    with atomic_path(p) as tmp:
         buf.tofile(str(tmp))
-        _replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return p
 
 
@@ -172,9 +156,8 @@ def write_float_map(path, values: np.ndarray, *, option: str = "--disparity") ->
     a = np.asarray(values, dtype=np.float32)
     if a.ndim != 2:
         raise OptionError(f"{option} {p}: expected a 2-D map; got shape {a.shape}")
-    tmp = _tmp_for(p)
     suffix = p.suffix.lower()
-    try:
+    with atomic_path(p) as tmp:
         if suffix == ".exr":
             oiio = _oiio()
             spec = oiio.ImageSpec(a.shape[1], a.shape[0], 1, oiio.FLOAT)
@@ -197,10 +180,6 @@ def write_float_map(path, values: np.ndarray, *, option: str = "--disparity") ->
         else:
             with open(tmp, "wb") as f:
                 np.save(f, a)
-        _replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return p
 
 
@@ -240,7 +219,8 @@ def read_float_map(path, *, key: str | None = None) -> np.ndarray:
         a = load_npz(p, label=f"float map {p}")[key or names[0]]
     else:
         cv2 = _cv2()
-        a = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        with native_stderr_to_log(f"float map {p}"):
+            a = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
         if a is None:
             raise InputError(f"float map {p}: cannot be read")
     a = np.asarray(a, dtype=np.float32)

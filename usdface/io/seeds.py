@@ -2,10 +2,10 @@
 convention: integer = pixel centre, y down), as JSON."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ..errors import InputError
+from ..inputfiles import read_json
 
 __all__ = ["read_seeds"]
 
@@ -15,12 +15,7 @@ def read_seeds(path, *, option: str = "--seeds") -> dict:
     a ``"markers"`` key) from JSON; ``option`` names the file in messages. The points are checked
     against the frame later (:func:`usdface.tracking.detect.check_seeds`)."""
     p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{option} {p}: no such file")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{option} {p}: not valid JSON ({exc})") from None
+    data = read_json(p, label=f"{option} {p}")  # a regular file, bounded size and nesting, UTF-8
     if isinstance(data, dict) and "markers" in data and isinstance(data["markers"], dict):
         data = data["markers"]
     if not isinstance(data, dict):

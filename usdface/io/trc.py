@@ -184,7 +184,9 @@ def write_trc(path, capture: Capture) -> None:
     for f, row in enumerate(values):
         code = capture.start_frame + f
         out.append(f"{code + 1}\t{format_number(code / capture.rate)}\t" + join_numbers(row, "\t"))
-    with open(os.fspath(path), "w", newline="\n", encoding="utf-8") as handle:
+    from ..fileutil import atomic_path
+
+    with atomic_path(path) as tmp, open(tmp, "w", newline="\n", encoding="utf-8") as handle:
         handle.write("\n".join(out) + "\n")
 
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import InputError, OptionError
 from ..inputfiles import check_input_file
+from .native_output import native_stderr_to_log
 
 __all__ = ["MOVIE_SUFFIXES", "SEQUENCE_SUFFIXES", "VideoReader", "open_video", "is_sequence_pattern", "is_video"]
 
@@ -238,7 +239,8 @@ class VideoReader:
                 raise InputError(f"video frame {path}: cannot be decoded")
             return _to_uint8_bgr(np.asarray(data), rgb_order=True)
         cv2 = _cv2()
-        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        with native_stderr_to_log(f"video frame {path}"):  # libpng's warnings
+            img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if img is None:
             raise InputError(f"video frame {path}: cannot be read as an image")
         return _to_uint8_bgr(img, rgb_order=False)

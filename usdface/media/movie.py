@@ -12,14 +12,13 @@ over the destination only when the movie is complete; a failure or an interrupti
 from __future__ import annotations
 
 import os
-import tempfile
 from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DependencyError, InputError, OptionError, ResourceError
-from ..fileutil import fsync_dir, fsync_file
+from ..fileutil import fsync_dir, fsync_file, set_default_mode, temporary_path
 from .formats import MOVIE_SUFFIXES, X264_PRESETS  # noqa: F401 (X264_PRESETS re-exported)
 
 
@@ -103,12 +102,14 @@ class MovieWriter:
             raise InputError(f"cannot write movie {self.path}: folder {folder} does not exist")
         if self.path.is_dir():
             raise InputError(f"cannot write movie {self.path}: it is a folder")
+        # the one temporary scheme (usdface.fileutil): named for its owner, so the next writer of this
+        # movie removes what a killed one left; made here so a folder that takes no file fails now
+        tmp = temporary_path(self.path)
         try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=self.path.suffix, dir=folder)
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
         except OSError as exc:
             raise InputError(f"cannot write movie {self.path}: {exc.strerror or exc}") from None
-        os.close(fd)
-        self._tmp = Path(tmp)
+        self._tmp = tmp
         self.frames = 0
         try:
             self._container = self._av.open(str(self._tmp), "w", format="mp4", options={"movflags": "+faststart"})
@@ -136,31 +137,36 @@ class MovieWriter:
         self._mux(self._stream.encode(frame))
         self.frames += 1
 
+    def _write_failure(self, exc: OSError):
+        if exc.errno == 28:
+            return ResourceError(f"cannot write movie {self.path}: disk full")
+        return InputError(f"cannot write movie {self.path}: {exc.strerror or exc}")
+
     def _mux(self, packets) -> None:
         try:
             self._container.mux(packets)
         except OSError as exc:
-            if exc.errno == 28:
-                raise ResourceError(f"cannot write movie {self.path}: disk full") from None
-            raise InputError(f"cannot write movie {self.path}: {exc.strerror or exc}") from None
+            raise self._write_failure(exc) from None
 
     def close(self) -> Path:
-        """Flush the encoder, finish the file and rename it into place."""
+        """Flush the encoder, finish the file and rename it into place; any failure or interruption
+        on the way (the last packets, the faststart rewrite of the whole file) removes the temporary."""
         if self.frames == 0:
             self._discard()
             raise InputError(f"movie {self.path}: no frames to write")
-        self._mux(self._stream.encode())
-        self._container.close()
-        self._container = None
         try:
+            self._mux(self._stream.encode())
+            self._container.close()
+            self._container = None
             fsync_file(self._tmp)
-            mask = os.umask(0)
-            os.umask(mask)
-            os.chmod(self._tmp, 0o666 & ~mask)
+            set_default_mode(self._tmp)
             os.replace(self._tmp, self.path)
         except OSError as exc:
             self._discard()
-            raise InputError(f"cannot write movie {self.path}: {exc.strerror or exc}") from None
+            raise self._write_failure(exc) from None
+        except BaseException:  # an error above, or SIGINT/SIGTERM/SIGHUP (Interrupted)
+            self._discard()
+            raise
         fsync_dir(self.path.parent if str(self.path.parent) else ".")
         return self.path
 

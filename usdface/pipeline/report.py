@@ -11,7 +11,6 @@ the shot stage and the capture layer are read here (:mod:`usdface.usd`) and hand
 """
 from __future__ import annotations
 
-import json
 import logging
 import os
 import time
@@ -167,10 +166,13 @@ def batch_report(summary, output=None, *, options: ReportOptions | None = None) 
 def _batch_summary(summary) -> dict:
     if isinstance(summary, dict):
         return summary
+    from ..inputfiles import read_json
+
     path = Path(summary)
-    if not path.is_file():
-        raise InputError(f"batch summary {path}: no such file")
-    return json.loads(path.read_text())
+    data = read_json(path, label=f"batch summary {path}")  # a regular file, bounded size and nesting, UTF-8
+    if not isinstance(data, dict):
+        raise InputError(f"batch summary {path}: expected the JSON object `usdface batch` writes")
+    return data
 
 
 def _batch_output(summary: dict, output):

@@ -133,13 +133,17 @@ def video_frame_indices(times: np.ndarray, timing: VideoTiming, *, video_rate: f
 
 def summary_beside(shot_path) -> dict | None:
     """The run's ``summary.json`` beside a shot (None when missing or unreadable)."""
+    from ..errors import UsdFaceError
+    from ..inputfiles import read_json
+
     p = Path(shot_path).parent / "summary.json"
     if not p.is_file():
         return None
     try:
-        return json.loads(p.read_text())
-    except (OSError, ValueError):
+        data = read_json(p, label=str(p))  # bounded size and nesting (a shot folder is not always ours)
+    except UsdFaceError:
         return None
+    return data if isinstance(data, dict) else None
 
 
 def video_timing(shot_path, *, shot_start: int, rate: float) -> VideoTiming:

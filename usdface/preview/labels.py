@@ -64,8 +64,48 @@ def _box_at(anchor, size, angle, dist):
     return np.stack([x0, y0, x0 + w, y0 + h], axis=-1)
 
 
+def _box_point_distance(boxes: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(len(boxes), len(points)) distance from each box to each point (0 inside)."""
+    dx = np.maximum(np.maximum(boxes[:, None, 0] - points[None, :, 0], points[None, :, 0] - boxes[:, None, 2]), 0.0)
+    dy = np.maximum(np.maximum(boxes[:, None, 1] - points[None, :, 1], points[None, :, 1] - boxes[:, None, 3]), 0.0)
+    return np.hypot(dx, dy)
+
+
+def _search(i, anchors, sizes, *, taken, obstacles, image, gap, pad, leader_after, max_distance, own_nearest):
+    """The first free box for label ``i`` (ring by ring) and whether it needs a leader line, or
+    None; with ``own_nearest`` a box close enough to go without a leader line must be nearer to its
+    own point than to any other (no label reads as another's; a leader line says whose it is)."""
+    a, size = anchors[i], sizes[i]
+    w_img, h_img = image
+    n_ang = _ANGLES.size
+    others = np.delete(anchors, i, axis=0)
+    others = others[np.isfinite(others).all(axis=1)]
+    step = max(size[1] * 0.6, 2.0)
+    dists = np.concatenate([[gap], gap + step * np.arange(1, int(max_distance / step) + 2)])
+    for b0 in range(0, dists.size, 12):  # rings in blocks: one vectorised test per block
+        ring = dists[b0:b0 + 12]
+        cand = _box_at(a, size, np.tile(_ANGLES, ring.size), np.repeat(ring, n_ang))
+        free = (cand[:, 0] >= 0) & (cand[:, 1] >= 0) & (cand[:, 2] <= w_img) & (cand[:, 3] <= h_img)
+        if free.any() and taken.shape[0]:
+            free[free] &= ~boxes_overlap(cand[free], taken, pad).any(axis=1)
+        if free.any() and obstacles.shape[0]:
+            free[free] &= ~boxes_overlap(cand[free], obstacles, 0.0).any(axis=1)
+        near = np.repeat(ring, n_ang) <= leader_after
+        if own_nearest and (free & near).any() and others.shape[0]:
+            test = free & near
+            own = _box_point_distance(cand[test], a[None])[:, 0]
+            # clearly nearer: by half a gap (12.35 px against 12.8 px reads as either dot's)
+            free[test] = own + 0.5 * gap <= _box_point_distance(cand[test], others).min(axis=1)
+        hit = np.flatnonzero(free)
+        if hit.size:
+            j = hit[0]
+            return cand[j], ring[j // n_ang] > leader_after
+    return None
+
+
 def place_labels(anchors, sizes, *, image_size, gap: float = 3.0, obstacles=None, pad: float = 1.0,
-                 leader_after: float | None = None, max_distance: float | None = None) -> LabelPlacement:
+                 leader_after: float | None = None, max_distance: float | None = None,
+                 own_nearest: bool = False) -> LabelPlacement:
     """Place label boxes of ``sizes`` next to ``anchors`` without overlaps, inside the image.
 
     Parameters
@@ -87,6 +127,10 @@ def place_labels(anchors, sizes, *, image_size, gap: float = 3.0, obstacles=None
         A label farther than this from its point is flagged for a leader line (default: 2 x gap).
     max_distance : float, optional
         Farthest ring searched (default: the image diagonal).
+    own_nearest : bool
+        A label placed without a leader line must be nearer to its own point than to any other (by
+        half a ``gap`` at least), so it is never read as its neighbour's; where no such box is free,
+        the label goes farther, with a leader line.
 
     Returns
     -------
@@ -109,27 +153,14 @@ def place_labels(anchors, sizes, *, image_size, gap: float = 3.0, obstacles=None
     crowd = (d < 2.5 * np.median(sizes[:, 1])).sum(axis=1)
     order = np.lexsort((anchors[:, 0], anchors[:, 1], -crowd))
     taken = np.zeros((0, 4))
-    n_ang = _ANGLES.size
+    settings = dict(obstacles=obstacles, image=(w_img, h_img), gap=gap, pad=pad, leader_after=leader_after,
+                    max_distance=max_distance)
     for i in order:
-        a, size = anchors[i], sizes[i]
-        if not np.isfinite(a).all():
+        if not np.isfinite(anchors[i]).all():
             continue
-        step = max(size[1] * 0.6, 2.0)
-        dists = np.concatenate([[gap], gap + step * np.arange(1, int(max_distance / step) + 2)])
-        for b0 in range(0, dists.size, 12):  # rings in blocks: one vectorised test per block
-            ring = dists[b0:b0 + 12]
-            cand = _box_at(a, size, np.tile(_ANGLES, ring.size), np.repeat(ring, n_ang))
-            free = (cand[:, 0] >= 0) & (cand[:, 1] >= 0) & (cand[:, 2] <= w_img) & (cand[:, 3] <= h_img)
-            if free.any() and taken.shape[0]:
-                free[free] &= ~boxes_overlap(cand[free], taken, pad).any(axis=1)
-            if free.any() and obstacles.shape[0]:
-                free[free] &= ~boxes_overlap(cand[free], obstacles, 0.0).any(axis=1)
-            hit = np.flatnonzero(free)
-            if hit.size:
-                j = hit[0]
-                boxes[i] = cand[j]
-                placed[i] = True
-                leader[i] = ring[j // n_ang] > leader_after
-                taken = np.vstack([taken, boxes[i][None]])
-                break
+        found = _search(i, anchors, sizes, taken=taken, own_nearest=own_nearest, **settings)
+        if found is not None:
+            boxes[i], leader[i] = found
+            placed[i] = True
+            taken = np.vstack([taken, boxes[i][None]])
     return LabelPlacement(boxes, placed, leader)

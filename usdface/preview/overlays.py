@@ -169,8 +169,9 @@ def label_font(scale: float) -> float:
     return max(0.34 * scale, MIN_LABEL_FONT)
 
 
-def place_point_labels(img_size, entries, *, radius: float, font: float, obstacles):
-    """Lay out point labels; ``entries`` = [(xy (2,), text, rgb, visible)]. Returns (placement, sizes, baselines)."""
+def place_point_labels(img_size, entries, *, radius: float, font: float, obstacles, own_nearest: bool = False):
+    """Lay out point labels; ``entries`` = [(xy (2,), text, rgb, visible)]; ``own_nearest``: see
+    :func:`usdface.preview.labels.place_labels`. Returns (placement, sizes, baselines)."""
     from .labels import place_labels
 
     cv2 = _cv2()
@@ -181,7 +182,7 @@ def place_point_labels(img_size, entries, *, radius: float, font: float, obstacl
         bases.append(th + 1)
     anchors = np.array([e[0] for e in entries], dtype=np.float64).reshape(-1, 2) - 0.5
     placement = place_labels(anchors, np.array(sizes, dtype=np.float64).reshape(-1, 2), image_size=img_size,
-                             gap=1.15 * radius + 2.0, obstacles=obstacles, pad=1.0)
+                             gap=1.15 * radius + 2.0, obstacles=obstacles, pad=1.0, own_nearest=own_nearest)
     return placement, sizes, bases
 
 

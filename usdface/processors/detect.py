@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 
 from ..errors import ComputeError, OptionError
-from ..fileutil import refuse_overwriting_inputs, write_text_atomic
+from ..fileutil import StagedOutputs, refuse_overwriting_inputs
 from ..options import DetectOptions
 from ..registry import Result
 
@@ -52,15 +52,13 @@ def detect(image, *, options: DetectOptions, output, preview=None) -> Result:
         text.append(f"  {len(model.names)} landmarks fitted on the largest face (AAM residual {fit.residual:.3f}, "
                     f"{fit.iterations} iterations)")
     pic = draw_detections(img, faces, fit.points if fit is not None else None) if prev else None
-    write_text_atomic(out, json.dumps(data, indent=1) + "\n")
     files = {"output": out}
-    try:
+    with StagedOutputs() as staged:  # both files or neither: a failure leaves the old ones as they were
+        staged.path(out).write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
         if prev is not None:
-            write_image(prev, pic)
+            write_image(staged.path(prev), pic)
             files["preview"] = prev
             text.append(f"wrote {prev}: preview")
-    except BaseException:
-        out.unlink(missing_ok=True)
-        raise
+        staged.commit()
     text.insert(0, f"wrote {out}")
     return Result(files=files, summary=dict(data, output=str(out)), text=text)

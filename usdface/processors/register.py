@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ComputeError, InputError, MeshError, OptionError, list_names
-from ..fileutil import refuse_overwriting_inputs
+from ..fileutil import StagedOutputs, refuse_overwriting_inputs
 from ..options import RegisterOptions
 from ..registry import Result
 from ..usd.layers import check_output_path, describe, is_in_memory, provenance
@@ -200,21 +200,16 @@ def _carried_layout(lay_in, mesh, registered_points):
 
 
 def _write(out, registered, regions, prov, carried) -> None:
-    """The carried layout (``carried``: (path, layout) or None), then the registered mesh layer; a
-    failure removes the layout."""
+    """The carried layout (``carried``: (path, layout) or None) and the registered mesh layer, both
+    or neither (a failure or an interruption leaves the old files as they were)."""
     from ..mesh.layout import write_layout
     from ..usd.mesh_layer import write_mesh_layer
 
-    if carried is None:
-        write_mesh_layer(out, registered, regions, prov=prov)
-        return
-    lay_out, new_layout = carried
-    write_layout(lay_out, new_layout, decimals=5)
-    try:
-        write_mesh_layer(out, registered, regions, prov=prov)
-    except BaseException:
-        lay_out.unlink(missing_ok=True)
-        raise
+    with StagedOutputs() as staged:
+        if carried is not None:
+            write_layout(staged.path(carried[0]), carried[1], decimals=5)
+        write_mesh_layer(staged.path(out), registered, regions, prov=prov)
+        staged.commit()
 
 
 def _result(out, generic, scan, mesh, regions, res, names, iterations: int, carried, t0) -> Result:

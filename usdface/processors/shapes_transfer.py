@@ -129,16 +129,13 @@ def _generic(o: ShapesTransferOptions) -> tuple:
 
 def _target_landmarks(path, names, mesh):
     """Landmark positions on the target: a marker layout on it, or a landmarks JSON of scan points."""
-    import json
-
+    from ..inputfiles import read_json
     from ..mesh.layout import read_layout
     from ..scan.landmarks import read_landmarks
 
     p = Path(path)
-    try:
-        fmt = json.loads(p.read_text()).get("format", "")
-    except (OSError, ValueError, AttributeError):
-        fmt = ""
+    data = read_json(p, label=f"--landmarks {p}")  # a regular file, bounded size and nesting, UTF-8
+    fmt = data.get("format", "") if isinstance(data, dict) else ""
     if str(fmt).startswith("usdface-layout/"):
         lay = read_layout(p)
         have = [n for n in names if n in lay.names]

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, OptionError
-from ..fileutil import refuse_overwriting_inputs
+from ..fileutil import StagedOutputs, refuse_overwriting_inputs
 from ..options import StereoOptions
 from ..registry import Result
 from ..usd.layers import check_output_path, is_in_memory, provenance
@@ -193,26 +193,23 @@ def _scan_mesh(d, res, o: StereoOptions, pair: _Pair, inputs: dict, summary: dic
 
 
 def _write(out, disp_path, dmap, scan, fill: str, summary: dict, text: list) -> dict:
-    """Write the disparity map, then the scan layer; a failure removes what was written."""
+    """Write the disparity map and the scan layer, both or neither (a failure or an interruption
+    leaves the old files as they were)."""
     from ..io.images import write_float_map
     from ..usd.mesh_layer import write_mesh_layer
 
-    files, written = {}, []
-    try:
+    files = {}
+    with StagedOutputs() as staged:
         if disp_path is not None:
-            write_float_map(disp_path, dmap)
-            written.append(disp_path)
+            write_float_map(staged.path(disp_path), dmap)
             files["disparity"] = disp_path
             summary["disparity"] = str(disp_path)
             text.append(f"wrote {disp_path}: disparity map (float32, "
                         + ("rejected pixels filled with the background disparity)" if fill == "background"
                            else "NaN where rejected)"))
         if scan is not None:
-            write_mesh_layer(out, scan[0], [], prov=scan[1])
-    except BaseException:
-        for p in written:
-            Path(p).unlink(missing_ok=True)
-        raise
+            write_mesh_layer(staged.path(out), scan[0], [], prov=scan[1])
+        staged.commit()
     return files
 
 

@@ -17,15 +17,13 @@ Outputs (all checked before any work, written only when everything succeeded): a
 from __future__ import annotations
 
 import logging
-import os
-import secrets
 import time
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import OptionError
-from ..fileutil import check_output_file, refuse_overwriting_inputs
+from ..fileutil import StagedOutputs, check_output_file, refuse_overwriting_inputs
 from ..options import TrackOptions
 from ..registry import Result
 from ..usd.layers import check_output_path, describe, is_in_memory, provenance
@@ -164,38 +162,24 @@ def _track(reader, detector, start, o: TrackOptions, keep_preview: bool):
 
 
 def _write(out, capture, result, reader, prov, extras) -> dict:
-    """The CSV and the preview (``extras`` = (csv path, png path, picture)), then the track
-    layer; a failure removes what was written. Returns the files written."""
+    """The CSV, the preview (``extras`` = (csv path, png path, picture)) and the track layer, all
+    or none (a failure or an interruption leaves the old files as they were). Returns the files written."""
     from ..io.csv_format import write_csv
     from ..preview.png import write_png
     from ..usd.track_layer import write_track_layer
 
     csv_path, png_path, picture = extras
-    files, written = {}, []
-    try:
+    files = {}
+    with StagedOutputs() as staged:
         if csv_path is not None:
-            tmp = csv_path.with_name(f".{csv_path.stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}.csv")
-            try:
-                write_csv(tmp, capture.replace(units=None), dims=2)
-                os.replace(tmp, csv_path)
-            finally:
-                if tmp.exists():
-                    tmp.unlink()
-            written.append(csv_path)
+            write_csv(staged.path(csv_path), capture.replace(units=None), dims=2)
             files["csv"] = csv_path
         if png_path is not None:
-            write_png(png_path, picture)
-            written.append(png_path)
+            write_png(staged.path(png_path), picture)
             files["preview"] = png_path
-        write_track_layer(out, capture, confidence=result.confidence, image_size=reader.size, prov=prov,
+        write_track_layer(staged.path(out), capture, confidence=result.confidence, image_size=reader.size, prov=prov,
                           source_video=str(capture.source))
-    except BaseException:
-        for p in written:
-            try:
-                Path(p).unlink()
-            except OSError:
-                pass
-        raise
+        staged.commit()
     return files
 
 

@@ -59,7 +59,6 @@ Overrides
 """
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -412,13 +411,12 @@ def parse_stiffness(value):
         pass
     from pathlib import Path
 
+    from ..inputfiles import read_json
+
     path = Path(value)
-    if not path.is_file():
+    if not path.exists():
         raise OptionError(f"--stiffness {value}: expected a width in mesh units or a JSON file {{marker: width}}")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise OptionError(f"--stiffness {value}: not valid JSON ({exc})") from None
+    data = read_json(path, label=f"--stiffness {value}")  # a regular file, bounded size and nesting, UTF-8
     if not isinstance(data, dict):
         raise OptionError(f"--stiffness {value}: expected a JSON object {{marker: width}}")
     return data

@@ -97,12 +97,14 @@ def load_run_summary(outdir) -> dict:
     if not outdir.is_dir():
         raise InputError(f"report {outdir}: no such folder (expected the output folder of `usdface run`)")
     summary_path = outdir / "summary.json"
-    if not summary_path.is_file():
+    if not summary_path.exists():
         raise InputError(f"report {outdir}: no summary.json (expected the output folder of `usdface run`)")
-    try:
-        return json.loads(summary_path.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"report {summary_path}: cannot be read as JSON ({exc})") from None
+    from ..inputfiles import read_json
+
+    data = read_json(summary_path, label=f"report {summary_path}")  # a regular file, bounded, UTF-8
+    if not isinstance(data, dict):
+        raise InputError(f"report {summary_path}: expected the JSON object `usdface run` writes")
+    return data
 
 
 def gather_shot(outdir, summary: dict, face, *, shot, capture=None) -> ShotData:

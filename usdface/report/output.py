@@ -4,7 +4,6 @@ complete, then the page (last: a page on disk always finds its movies)."""
 from __future__ import annotations
 
 import os
-import secrets
 import shutil
 from pathlib import Path
 
@@ -46,12 +45,17 @@ class MediaFolder:
         """Rename the finished folder over the final one (the old one, if any, is removed after)."""
         old = None
         if self.final.exists():
-            old = self.final.with_name(f".{self.final.name}.old-{secrets.token_hex(4)}")
+            old = temporary_path(self.final)  # the old folder, named for its owner until removed
             os.replace(self.final, old)
         mask = os.umask(0)
         os.umask(mask)
         os.chmod(self.path, 0o777 & ~mask)  # a plain folder's permissions (a temporary one is private)
-        os.replace(self.path, self.final)
+        try:
+            os.replace(self.path, self.final)
+        except BaseException:  # a failure or an interruption: the old media folder goes back
+            if old is not None:
+                os.replace(old, self.final)
+            raise
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
 

@@ -285,9 +285,9 @@ def sample_face(sample_assets, which: str = "stylized", *, photo=None, skin: boo
     lm = evaluate_locations(mesh.points, mesh.triangles(), tri, bary)
     img = pl = None
     if photo is not None:
-        import cv2
+        from ..io.images import read_image
 
-        img = cv2.imread(str(photo))
+        img = read_image(photo)  # libpng's iCCP warning kept off stderr
         pl = read_landmarks(root / "landmarks" / (Path(photo).stem + ".landmarks.json")).image_array(FACE_LANDMARKS)
     scene = face_scene(mesh, regions, lm, photo=img, photo_landmarks=pl, skin=skin)
     return mesh, regions, lm, scene

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -162,15 +161,10 @@ class Timeline:
 
 def read_timeline(path) -> Timeline:
     """Read a timeline JSON file (see the module docstring)."""
+    from ..inputfiles import read_json
+
     p = Path(path)
-    if not p.is_file():
-        raise InputError(f"timeline {p}: no such file")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"timeline {p}: cannot be read ({e})") from None
-    except json.JSONDecodeError as e:
-        raise FormatError(f"timeline {p}: not valid JSON (line {e.lineno}: {e.msg})") from None
+    data = read_json(p, label=f"timeline {p}")  # a regular file, bounded size and nesting, UTF-8
     if not isinstance(data, dict):
         raise FormatError(f"timeline {p}: expected a JSON object with \"rate\" and \"keys\"")
     extra = sorted(set(data) - {"rate", "keys", "frames", "format", "comment"})
@@ -183,11 +177,9 @@ def read_timeline(path) -> Timeline:
 
 def write_timeline(path, timeline: Timeline) -> Path:
     """Write a timeline JSON file (atomically)."""
-    p = Path(path)
-    tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
-    tmp.write_text(json.dumps(timeline.to_dict(), indent=1) + "\n", encoding="utf-8")
-    os.replace(tmp, p)
-    return p
+    from ..fileutil import write_text_atomic
+
+    return write_text_atomic(path, json.dumps(timeline.to_dict(), indent=1) + "\n")
 
 
 def expression_timeline(name: str, muscle_names, *, rate: float = 24.0, ramp_frames: int = 12,

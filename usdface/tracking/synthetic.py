@@ -424,9 +424,9 @@ def animface_clip(sample_assets, shared_data=None, *, n_frames: int = 90, step: 
     idx = start + step * np.arange(n_frames)
     if idx[-1] >= cap.n_frames:
         raise OptionError(f"animface_clip: frames up to {idx[-1]} asked; the capture has {cap.n_frames}")
-    photo = _cv2().imread(str(shared / "images" / "astronaut.png"))
-    if photo is None:
-        raise InputError(f"{shared / 'images' / 'astronaut.png'}: cannot be read")
+    from ..io.images import read_image
+
+    photo = read_image(shared / "images" / "astronaut.png")  # libpng's iCCP warning kept off stderr
     lms = json.loads((sample_assets / "landmarks" / "astronaut.landmarks.json").read_text())
     lms = {k: v["image"] for k, v in lms.items()}
     style = ClipStyle(**{"rate": cap.rate / step, **style})

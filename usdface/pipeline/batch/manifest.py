@@ -33,7 +33,6 @@ import dataclasses
 import glob
 import os
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -138,14 +137,13 @@ def load_manifest(path, *, out_root=None, check_files: bool = True) -> Manifest:
     InputError
         Missing input files (all of them listed), unwritable output folders, clashing outputs.
     """
+    from ...inputfiles import parse_toml, read_text_file
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"manifest {path}: no such file")
-    text = path.read_text()
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise FormatError(f"manifest {path}: not valid TOML ({exc})") from None
+    # a regular file (a named pipe blocked, a folder said "no such file"), bounded in size, UTF-8,
+    # bounded in nesting (100000 nested [ raised RecursionError)
+    text = read_text_file(path, label=f"manifest {path}", kind="TOML")
+    data = parse_toml(text, where=f"manifest {path}")
     base = path.resolve().parent
     where = lambda table, index, key: _where(path, text, table, index, key)  # noqa: E731
     batch, defaults, entries = _tables(path, data, where)
