@@ -434,3 +434,89 @@ def test_bad_inputs(face):
         rbf.apply(np.zeros((3, M, 3)), dtype=np.float16)
     empty = rbf.apply(np.zeros((0, M, 3)))
     assert empty.shape == (0, len(face.V), 3)
+
+
+# ---------------------------------------------------------------------------------------- the options objects
+def test_settings_are_checked_and_normalised_when_made():
+    """RBFSettings refuses a bad field before any distance is read, with the transfer's messages,
+    and stores the kernel's canonical name, lambda as a float and the polynomial flag as a bool."""
+    s = RBFSettings(kernel="inverse-multiquadric", regularization=np.float32(0.5), polynomial=1)
+    assert (s.kernel, s.regularization, s.polynomial) == ("inverse_multiquadric", 0.5, True)
+    assert type(s.regularization) is float and s.polynomial is True
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.kernel = "gaussian"
+    cases = [
+        (dict(mode="hybrid"), "mode: expected one of interpolate, paper; got 'hybrid'"),
+        (dict(all_invalid="skip"), "all_invalid: expected one of error, hold, zero; got 'skip'"),
+        (dict(regularization="much"), "regularization: expected a number >= 0; got 'much'"),
+        (dict(regularization=-1e-3), "regularization: expected a finite number >= 0; got -0.001"),
+        (dict(mode="paper", polynomial=True),
+         "polynomial=True applies to mode='interpolate' only (Eqs. 1-5 have no polynomial term)"),
+        (dict(mode="paper", kernel="cubic"),
+         "kernel 'cubic' does not decay with distance: paper mode (Eqs. 1-5, no solve) needs one of "
+         "gaussian, inverse_multiquadric; use mode='interpolate'"),
+        (dict(mode="paper", regularization=0.1),
+         "regularization applies to mode='interpolate' only (paper mode solves no system)"),
+    ]
+    for fields, message in cases:
+        with pytest.raises(OptionError) as err:
+            RBFSettings(**fields)
+        assert str(err.value) == message
+
+
+def test_centres_are_checked_against_the_distances(face):
+    """RBFCentres' sizes come from the distances: the transfer's set-up checks them, with the same
+    messages, and keeps the names as a tuple of str."""
+    D_vc, D_cc, M = face.D_vc, face.D_cc, face.M
+    centres = RBFCentres(n_markers=M, marker_names=face.names)
+    assert centres.marker_names == tuple(face.names)
+    assert RBFTransfer(D_vc, D_cc, centres=centres).marker_names == tuple(face.names)
+    cases = [
+        (RBFCentres(n_markers=0), OptionError, "n_markers: expected an integer in 1..49 (the number of centres); got 0"),
+        (RBFCentres(n_markers=M, marker_names=face.names[:-1]), OptionError, "marker_names: 40 names for 41 markers"),
+        (RBFCentres(n_markers=M, marker_names=["m00"] * M), OptionError, "marker_names: duplicated names m00"),
+        (RBFCentres(n_markers=M, collocation=(np.zeros((M, 3), int), np.ones((M, 3)) / 3)), None, None),
+        (RBFCentres(n_markers=M, collocation=(np.full((M, 3), len(face.V)), np.ones((M, 3)) / 3)), InputError,
+         f"collocation: triangle vertex indices outside 0..{len(face.V) - 1}"),
+    ]
+    for c, error, message in cases:
+        if error is None:
+            RBFTransfer(D_vc, D_cc, centres=c)
+            continue
+        with pytest.raises(error) as err:
+            RBFTransfer(D_vc, D_cc, centres=c)
+        assert str(err.value) == message
+    with pytest.raises(OptionError, match=r"^collocation applies to mode='interpolate' only$"):
+        RBFTransfer(D_vc, D_cc, settings=RBFSettings(mode="paper"), centres=cases[3][0])
+    with pytest.raises(OptionError, match=r"^settings: expected RBFSettings; got dict$"):
+        RBFTransfer(D_vc, D_cc, settings={"kernel": "gaussian"})
+
+
+def test_a_refused_system_still_reports_its_condition_number(face):
+    """fit() refuses a singular system; condition_number then gives what its SVD measured."""
+    C = face.C.copy()
+    C[7] = C[3]
+    D_cc = _euclid(C, C)
+    rbf = RBFTransfer(_euclid(face.V, C), D_cc, centres=RBFCentres(n_markers=face.M))
+    measured = np.linalg.cond(KERNELS["gaussian"](D_cc, rbf.widths))
+    assert rbf.condition_number == measured and 1e15 < measured < np.inf
+    with pytest.raises(ComputeError, match="singular"):
+        rbf.fit()
+    assert rbf.cache_info() == {"hits": 0, "misses": 0, "patterns": 0}
+
+
+def test_transfer_motion_is_the_fitted_transfer_applied(face):
+    D = _with_gaps(_motion(20, face.M))
+    settings, centres = RBFSettings(kernel="inverse_multiquadric"), RBFCentres(n_markers=face.M)
+    one_call = transfer_motion(face.D_vc, face.D_cc, D, settings=settings, centres=centres, dtype=np.float64)
+    solver = RBFTransfer(face.D_vc, face.D_cc, settings=settings, centres=centres).fit()
+    assert np.array_equal(one_call, solver.apply(D, dtype=np.float64))
+
+
+def test_public_names_are_where_they_were():
+    import usdface.rbf as rbf
+    from usdface.rbf.transfer import ADVICE_CONDITION, RBFTransfer as Direct, transfer_motion as direct_motion
+
+    assert rbf.RBFTransfer is Direct and rbf.transfer_motion is direct_motion
+    assert rbf.ADVICE_CONDITION == ADVICE_CONDITION == 1e10
+    assert {"RBFSettings", "RBFCentres"} <= set(rbf.__all__) <= set(dir(rbf))
