@@ -203,6 +203,13 @@ def grid_face(n_side: int):
     return mesh, markers
 
 
+def _streams_positions(solver) -> bool:
+    """Whether this usdface's iter_chunks adds the rest points and extents in the product (0.3 on)."""
+    import inspect
+
+    return "offset" in inspect.signature(solver.iter_chunks).parameters
+
+
 def child(mode: str, n_side: int, frames: int, out_dir: str) -> dict:
     """One in-process measurement in a fresh process (so the peak RSS is this job's)."""
     import usdface  # noqa: F401
@@ -227,8 +234,13 @@ def child(mode: str, n_side: int, frames: int, out_dir: str) -> dict:
     else:
         d_vc = euclidean_distances(mesh.points, tri, bary)
         d_cc = euclidean_at_sources(mesh.points, tri, bary)
-        solver = RBFTransfer(d_vc, d_cc, widths=2.0, n_markers=41).fit()
-        if hasattr(solver, "_offset_rhs"):     # the transfer processor's path: rest and extents in the product
+        try:
+            from usdface.rbf import RBFCentres, RBFSettings
+        except ImportError:                    # older usdface (the "before" numbers): keyword options
+            solver = RBFTransfer(d_vc, d_cc, widths=2.0, n_markers=41).fit()
+        else:
+            solver = RBFTransfer(d_vc, d_cc, settings=RBFSettings(widths=2.0), centres=RBFCentres(n_markers=41)).fit()
+        if _streams_positions(solver):         # the transfer processor's path: rest and extents in the product
             chunks = solver.iter_chunks(disp, chunk_frames=CHUNK, offset=mesh.points, extents=True,
                                         blas_threads=1, buffers=3)
         else:                                  # older usdface (the "before" numbers)
@@ -237,7 +249,7 @@ def child(mode: str, n_side: int, frames: int, out_dir: str) -> dict:
         for _ in chunks:
             pass
     else:
-        absolute = mode == "transfer" and hasattr(solver, "_offset_rhs")
+        absolute = mode == "transfer" and _streams_positions(solver)
         from usdface.model.timing import FrameRange
 
         write_animation_layer(Path(out_dir) / f"anim_{mode}.usdc", chunks, mesh_path=mesh_path,

@@ -237,10 +237,10 @@ def test_chunk_frames_is_checked_before_any_work(bad):
     import numpy as np
 
     from usdface.errors import OptionError
-    from usdface.rbf.transfer import RBFTransfer
+    from usdface.rbf.transfer import RBFCentres, RBFSettings, RBFTransfer
 
     d = np.array([[0.0, 1.0], [1.0, 0.0], [0.5, 0.5]])
-    solver = RBFTransfer(d, d[:2], n_markers=2, widths=1.0).fit()
+    solver = RBFTransfer(d, d[:2], settings=RBFSettings(widths=1.0), centres=RBFCentres(n_markers=2)).fit()
     with pytest.raises(OptionError, match="chunk_frames: expected an integer >= 1"):
         next(iter(solver.iter_chunks(np.zeros((4, 2, 3)), chunk_frames=bad)))
 

@@ -1,15 +1,26 @@
 """RBFTransfer: interpolation exactness, paper Eqs. 1-5, validity patterns, conditioning, streaming."""
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
 import pytest
 
 from usdface.errors import ComputeError, InputError, OptionError
-from usdface.rbf import KERNELS, RBFTransfer, transfer_motion
+from usdface.rbf import KERNELS, RBFCentres, RBFSettings, RBFTransfer, transfer_motion
 
 MESH = "meshes/makehuman_hm08_face_cm.obj"
+
+
+_SETTINGS = {f.name for f in dataclasses.fields(RBFSettings)}
+
+
+def _rbf(D_vc, D_cc, **options):
+    """RBFTransfer from the keywords of RBFSettings and RBFCentres (the tests' shorthand)."""
+    settings = RBFSettings(**{k: v for k, v in options.items() if k in _SETTINGS})
+    centres = RBFCentres(**{k: v for k, v in options.items() if k not in _SETTINGS})
+    return RBFTransfer(D_vc, D_cc, settings=settings, centres=centres)
 
 
 # ---------------------------------------------------------------------------------------- data
@@ -96,7 +107,7 @@ def _rel_err(a, b):
 def test_interpolate_reproduces_markers(face, kernel, polynomial):
     D = _with_gaps(_motion(20, face.M))
     keep = D.copy()
-    rbf = RBFTransfer(face.D_vc, face.D_cc, kernel=kernel, polynomial=polynomial, n_markers=face.M,
+    rbf = _rbf(face.D_vc, face.D_cc, kernel=kernel, polynomial=polynomial, n_markers=face.M,
                       centre_points=face.C, vertex_points=face.V).fit()
     out64 = rbf.apply(D, dtype=np.float64)
     np.testing.assert_array_equal(D, keep)  # input untouched
@@ -117,7 +128,7 @@ def test_invalid_pattern_equals_refactorised_solve(face, polynomial):
     """The cached pattern operator equals dropping the invalid centres and solving from scratch."""
     D = _with_gaps(_motion(20, face.M))
     w = np.linspace(3.0, 5.0, len(face.centres))  # per-centre widths
-    rbf = RBFTransfer(face.D_vc, face.D_cc, widths=w, polynomial=polynomial, n_markers=face.M,
+    rbf = _rbf(face.D_vc, face.D_cc, widths=w, polynomial=polynomial, n_markers=face.M,
                       centre_points=face.C, vertex_points=face.V, regularization=1e-9)
     out = rbf.apply(D, dtype=np.float64)
     M, C = face.M, len(face.centres)
@@ -142,7 +153,7 @@ def test_matches_scipy_rbfinterpolator(face):
     D = _motion(5, face.M)
     s = 3.0
     for polynomial, degree in [(False, -1), (True, 1)]:
-        rbf = RBFTransfer(face.D_vc[:, : face.M], face.D_cc[: face.M, : face.M], widths=s, polynomial=polynomial,
+        rbf = _rbf(face.D_vc[:, : face.M], face.D_cc[: face.M, : face.M], widths=s, polynomial=polynomial,
                           centre_points=face.C[: face.M], vertex_points=face.V)
         ours = rbf.apply(D, dtype=np.float64)
         values = D.transpose(1, 0, 2).reshape(face.M, -1)
@@ -158,7 +169,7 @@ def test_polynomial_reproduces_affine_motion(face):
     markers = face.C[: face.M]
     D = (markers @ L.T + t)[None]
     for kernel in ["thin_plate_spline", "gaussian", "cubic"]:
-        rbf = RBFTransfer(face.D_vc[:, : face.M], face.D_cc[: face.M, : face.M], kernel=kernel, polynomial=True,
+        rbf = _rbf(face.D_vc[:, : face.M], face.D_cc[: face.M, : face.M], kernel=kernel, polynomial=True,
                           centre_points=markers, vertex_points=face.V)
         out = rbf.apply(D, dtype=np.float64)[0]
         np.testing.assert_allclose(out, face.V @ L.T + t, atol=1e-7)
@@ -173,14 +184,14 @@ def test_asymmetric_centre_distances_still_exact(face):
     D_vc = face.D_vc.copy()
     D_vc[face.centres] = D_cc
     D = _with_gaps(_motion(16, face.M))
-    rbf = RBFTransfer(D_vc, D_cc, n_markers=face.M, kernel="inverse_multiquadric")
+    rbf = _rbf(D_vc, D_cc, n_markers=face.M, kernel="inverse_multiquadric")
     out = rbf.apply(D, dtype=np.float64)
     valid = np.isfinite(D).all(axis=2)
     assert np.max(np.abs(out[:, face.markers][valid] - D[valid])) < 1e-9
 
 
 def test_transfer_matrix_is_skin_weights(face):
-    rbf = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M)
+    rbf = _rbf(face.D_vc, face.D_cc, n_markers=face.M)
     B = rbf.transfer_matrix
     assert B.shape == (len(face.V), face.M) and not B.flags.writeable
     D = _motion(3, face.M)
@@ -224,27 +235,27 @@ def test_paper_mode_equals_plain_loops(widths):
     D = rng.normal(size=(6, M, 3))
     D[2, 3] = np.nan
     D[4, [0, 5]] = np.nan
-    rbf = RBFTransfer(D_vc, D_cc, mode="paper", widths=w, n_markers=M)
+    rbf = _rbf(D_vc, D_cc, mode="paper", widths=w, n_markers=M)
     out = rbf.apply(D, dtype=np.float64)
     ref = _paper_reference(D_vc, D_cc, M, w, D)
     assert np.max(np.abs(out - ref)) <= 1e-6 * np.max(np.abs(ref))
     assert _rel_err(rbf.apply(D), ref) < 1e-5  # float32 path
     # constraint centres do nothing in paper mode
-    alone = RBFTransfer(D_vc[:, :M], D_cc[:M, :M], mode="paper", widths=w[:M]).apply(D, dtype=np.float64)
+    alone = _rbf(D_vc[:, :M], D_cc[:M, :M], mode="paper", widths=w[:M]).apply(D, dtype=np.float64)
     np.testing.assert_allclose(out, alone, rtol=0, atol=1e-12)
     assert rbf.condition_number is None and rbf.advice is None
 
 
 def test_paper_mode_does_not_interpolate(face):
     D = _motion(4, face.M)
-    out = RBFTransfer(face.D_vc, face.D_cc, mode="paper", widths=2.0, n_markers=face.M).apply(D, dtype=np.float64)
+    out = _rbf(face.D_vc, face.D_cc, mode="paper", widths=2.0, n_markers=face.M).apply(D, dtype=np.float64)
     assert _rel_err(out[:, face.markers], D) > 1e-3  # documented: the paper's weights are not solved
 
 
 # ---------------------------------------------------------------------------------------- patterns and policies
 def test_validity_pattern_cache_counts(face):
     D = _with_gaps(_motion(20, face.M))
-    rbf = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M).fit()
+    rbf = _rbf(face.D_vc, face.D_cc, n_markers=face.M).fit()
     assert rbf.cache_info() == {"hits": 0, "misses": 0, "patterns": 1}  # all-valid, from fit()
     rbf.apply(D)
     # partial frames: 3, 4 (same pattern), 7, 10-13 (same), 15 -> 4 patterns, 8 frames
@@ -258,13 +269,13 @@ def test_validity_pattern_cache_counts(face):
 def test_all_invalid_policies(face):
     D = _motion(9, face.M)
     D[[0, 4, 5]] = np.nan
-    rbf = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M)
+    rbf = _rbf(face.D_vc, face.D_cc, n_markers=face.M)
     with pytest.raises(ComputeError, match=r"3 frame\(s\) have no valid marker: frame index\(es\) 0, 4, 5 of 9") as info:
         rbf.iter_chunks(D)  # raised at the call, before any output
     assert info.value.frames == [0, 4, 5]
-    zero = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M, all_invalid="zero").apply(D)
+    zero = _rbf(face.D_vc, face.D_cc, n_markers=face.M, all_invalid="zero").apply(D)
     assert not zero[[0, 4, 5]].any()
-    hold_rbf = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M, all_invalid="hold")
+    hold_rbf = _rbf(face.D_vc, face.D_cc, n_markers=face.M, all_invalid="hold")
     for chunk_frames in (None, 1, 4, 5):  # the held frame crosses chunk boundaries
         hold = hold_rbf.apply(D, chunk_frames=chunk_frames)
         assert not hold[0].any()  # nothing to hold yet
@@ -276,7 +287,7 @@ def test_all_invalid_policies(face):
 
 def test_streaming_chunks_equal_one_shot(face):
     D = _with_gaps(_motion(23, face.M))
-    rbf = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M)
+    rbf = _rbf(face.D_vc, face.D_cc, n_markers=face.M)
     full = rbf.apply(D)
     seen = []
     for frames, chunk in rbf.iter_chunks(D, chunk_frames=7):
@@ -292,14 +303,14 @@ def test_streaming_chunks_equal_one_shot(face):
     np.testing.assert_array_equal(np.concatenate([c for c, _ in reused]), np.concatenate(seen))
     threads = rbf.apply(D, blas_threads=1)
     np.testing.assert_allclose(threads, full, rtol=1e-6, atol=1e-6 * np.abs(full).max())
-    assert transfer_motion(face.D_vc, face.D_cc, D, n_markers=face.M).shape == full.shape
+    assert transfer_motion(face.D_vc, face.D_cc, D, centres=RBFCentres(n_markers=face.M)).shape == full.shape
 
 
 def test_offset_and_extents_inside_the_product(face):
     """offset= adds the rest points inside the GEMM and extents= gives each frame's bounding box:
     the same as adding and reducing afterwards (float32 rounding), in float64 too."""
     D = _with_gaps(_motion(19, face.M))
-    rbf = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M)
+    rbf = _rbf(face.D_vc, face.D_cc, n_markers=face.M)
     rest = np.asarray(face.V, dtype=np.float64) + np.array([3.0, -80.0, 12.0])   # far from the origin
     for dtype, rtol in ((np.float32, 1e-6), (np.float64, 1e-12)):
         ref = rbf.apply(D, dtype=np.float64) + rest[None]
@@ -328,7 +339,7 @@ def test_polynomial_needs_four_non_coplanar_valid_centres():
     C = V[:5]
     D = np.zeros((2, 5, 3))
     D[1, :2] = np.nan  # 3 valid centres left
-    rbf = RBFTransfer(_euclid(V, C), _euclid(C, C), polynomial=True, centre_points=C, vertex_points=V,
+    rbf = _rbf(_euclid(V, C), _euclid(C, C), polynomial=True, centre_points=C, vertex_points=V,
                       marker_names=list("abcde"))
     with pytest.raises(ComputeError, match=r"frame\(s\) 1 with invalid markers 'a', 'b'"):
         rbf.apply(D)
@@ -337,13 +348,13 @@ def test_polynomial_needs_four_non_coplanar_valid_centres():
 # ---------------------------------------------------------------------------------------- conditioning
 def test_condition_number_and_advice_on_coincident_markers(face):
     M = face.M
-    good = RBFTransfer(face.D_vc, face.D_cc, n_markers=M, marker_names=face.names)
+    good = _rbf(face.D_vc, face.D_cc, n_markers=M, marker_names=face.names)
     assert 1 < good.condition_number < 1e10 and good.advice is None
     # marker 7 duplicated 1e-6 cm away from marker 3 (a binding mistake)
     C = face.C.copy()
     C[7] = C[3] + np.array([1e-6, 0, 0])
     D_cc, D_vc = _euclid(C, C), _euclid(face.V, C)
-    bad = RBFTransfer(D_vc, D_cc, n_markers=M, marker_names=face.names)
+    bad = _rbf(D_vc, D_cc, n_markers=M, marker_names=face.names)
     with pytest.warns(RuntimeWarning, match="condition number"):
         bad.fit()
     assert bad.condition_number > 1e10
@@ -353,18 +364,18 @@ def test_condition_number_and_advice_on_coincident_markers(face):
     # regularisation is one of the cures
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert RBFTransfer(D_vc, D_cc, n_markers=M, regularization=1e-6).condition_number < 1e10
+        assert _rbf(D_vc, D_cc, n_markers=M, regularization=1e-6).condition_number < 1e10
     # exactly coincident: singular, refused with the same advice
     C[7] = C[3]
     with pytest.raises(ComputeError, match="singular.*'m03' and 'm07'"):
-        RBFTransfer(_euclid(face.V, C), _euclid(C, C), n_markers=M, marker_names=face.names).fit()
+        _rbf(_euclid(face.V, C), _euclid(C, C), n_markers=M, marker_names=face.names).fit()
 
 
 def test_regularization_residual_grows(face):
     D = _motion(10, face.M)
     residuals = []
     for lam in [0.0, 1e-6, 1e-4, 1e-2, 1e-1, 1.0]:
-        rbf = RBFTransfer(face.D_vc, face.D_cc, n_markers=face.M, regularization=lam)
+        rbf = _rbf(face.D_vc, face.D_cc, n_markers=face.M, regularization=lam)
         out = rbf.apply(D, dtype=np.float64)
         residuals.append(np.sqrt(np.mean((out[:, face.markers] - D) ** 2)))
     assert residuals[0] < 1e-10
@@ -376,45 +387,45 @@ def test_regularization_residual_grows(face):
 def test_bad_inputs(face):
     D_vc, D_cc, M = face.D_vc, face.D_cc, face.M
     with pytest.raises(OptionError, match="widths.*m04=nan"):
-        RBFTransfer(D_vc, D_cc, n_markers=M, marker_names=face.names, widths={"m04": float("nan")})
+        _rbf(D_vc, D_cc, n_markers=M, marker_names=face.names, widths={"m04": float("nan")})
     with pytest.raises(OptionError, match="unknown marker.*Chin.*m00, m01"):
-        RBFTransfer(D_vc, D_cc, n_markers=M, marker_names=face.names, widths={"Chin": 1.0})
+        _rbf(D_vc, D_cc, n_markers=M, marker_names=face.names, widths={"Chin": 1.0})
     with pytest.raises(OptionError, match="regularization.*>= 0"):
-        RBFTransfer(D_vc, D_cc, n_markers=M, regularization=-1e-3)
+        _rbf(D_vc, D_cc, n_markers=M, regularization=-1e-3)
     with pytest.raises(OptionError, match="regularization"):
-        RBFTransfer(D_vc, D_cc, n_markers=M, regularization=float("nan"))
+        _rbf(D_vc, D_cc, n_markers=M, regularization=float("nan"))
     with pytest.raises(InputError, match=r"D_cc .* must have shape \(C, C\) = \(49, 49\)"):
-        RBFTransfer(D_vc, D_cc[:-1], n_markers=M)
+        _rbf(D_vc, D_cc[:-1], n_markers=M)
     with pytest.raises(InputError, match="D_vc"):
-        RBFTransfer(D_vc[0], D_cc)
+        _rbf(D_vc[0], D_cc)
     bad = D_vc.copy()
     bad[10, 2] = np.nan
     with pytest.raises(InputError, match=r"D_vc: 1 distance\(s\) are NaN \(e.g. at \(10, 2\)\)"):
-        RBFTransfer(bad, D_cc, n_markers=M)
+        _rbf(bad, D_cc, n_markers=M)
     with pytest.raises(InputError, match="negative"):
-        RBFTransfer(-D_vc, D_cc, n_markers=M)
+        _rbf(-D_vc, D_cc, n_markers=M)
     inf = D_vc.copy()
     inf[0, 0] = np.inf
-    RBFTransfer(inf, D_cc, n_markers=M).fit()  # gaussian: unreachable = no influence
+    _rbf(inf, D_cc, n_markers=M).fit()  # gaussian: unreachable = no influence
     with pytest.raises(ComputeError, match="infinite.*multiquadric"):
-        RBFTransfer(inf, D_cc, n_markers=M, kernel="multiquadric")
+        _rbf(inf, D_cc, n_markers=M, kernel="multiquadric")
     with pytest.raises(OptionError, match="n_markers"):
-        RBFTransfer(D_vc, D_cc, n_markers=0)
+        _rbf(D_vc, D_cc, n_markers=0)
     with pytest.raises(OptionError, match="n_markers"):
-        RBFTransfer(D_vc, D_cc, n_markers=D_cc.shape[0] + 1)
+        _rbf(D_vc, D_cc, n_markers=D_cc.shape[0] + 1)
     with pytest.raises(OptionError, match="mode"):
-        RBFTransfer(D_vc, D_cc, mode="hybrid")
+        _rbf(D_vc, D_cc, mode="hybrid")
     with pytest.raises(OptionError, match="all_invalid"):
-        RBFTransfer(D_vc, D_cc, all_invalid="skip")
+        _rbf(D_vc, D_cc, all_invalid="skip")
     with pytest.raises(OptionError, match="needs centre_points and vertex_points"):
-        RBFTransfer(D_vc, D_cc, polynomial=True)
+        _rbf(D_vc, D_cc, polynomial=True)
     with pytest.raises(InputError, match=r"vertex_points must have shape \(N, 3\)"):
-        RBFTransfer(D_vc, D_cc, polynomial=True, centre_points=face.C, vertex_points=face.V[:10])
+        _rbf(D_vc, D_cc, polynomial=True, centre_points=face.C, vertex_points=face.V[:10])
     with pytest.raises(OptionError, match="mode='interpolate' only"):
-        RBFTransfer(D_vc, D_cc, mode="paper", polynomial=True, centre_points=face.C, vertex_points=face.V)
+        _rbf(D_vc, D_cc, mode="paper", polynomial=True, centre_points=face.C, vertex_points=face.V)
     with pytest.raises(OptionError, match="mode='interpolate' only"):
-        RBFTransfer(D_vc, D_cc, mode="paper", regularization=0.1)
-    rbf = RBFTransfer(D_vc, D_cc, n_markers=M)
+        _rbf(D_vc, D_cc, mode="paper", regularization=0.1)
+    rbf = _rbf(D_vc, D_cc, n_markers=M)
     with pytest.raises(InputError, match=r"displacements must have shape \(F, M, 3\) = \(F, 41, 3\)"):
         rbf.apply(np.zeros((3, M + 1, 3)))
     with pytest.raises(OptionError, match="chunk_frames"):
@@ -423,3 +434,89 @@ def test_bad_inputs(face):
         rbf.apply(np.zeros((3, M, 3)), dtype=np.float16)
     empty = rbf.apply(np.zeros((0, M, 3)))
     assert empty.shape == (0, len(face.V), 3)
+
+
+# ---------------------------------------------------------------------------------------- the options objects
+def test_settings_are_checked_and_normalised_when_made():
+    """RBFSettings refuses a bad field before any distance is read, with the transfer's messages,
+    and stores the kernel's canonical name, lambda as a float and the polynomial flag as a bool."""
+    s = RBFSettings(kernel="inverse-multiquadric", regularization=np.float32(0.5), polynomial=1)
+    assert (s.kernel, s.regularization, s.polynomial) == ("inverse_multiquadric", 0.5, True)
+    assert type(s.regularization) is float and s.polynomial is True
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.kernel = "gaussian"
+    cases = [
+        (dict(mode="hybrid"), "mode: expected one of interpolate, paper; got 'hybrid'"),
+        (dict(all_invalid="skip"), "all_invalid: expected one of error, hold, zero; got 'skip'"),
+        (dict(regularization="much"), "regularization: expected a number >= 0; got 'much'"),
+        (dict(regularization=-1e-3), "regularization: expected a finite number >= 0; got -0.001"),
+        (dict(mode="paper", polynomial=True),
+         "polynomial=True applies to mode='interpolate' only (Eqs. 1-5 have no polynomial term)"),
+        (dict(mode="paper", kernel="cubic"),
+         "kernel 'cubic' does not decay with distance: paper mode (Eqs. 1-5, no solve) needs one of "
+         "gaussian, inverse_multiquadric; use mode='interpolate'"),
+        (dict(mode="paper", regularization=0.1),
+         "regularization applies to mode='interpolate' only (paper mode solves no system)"),
+    ]
+    for fields, message in cases:
+        with pytest.raises(OptionError) as err:
+            RBFSettings(**fields)
+        assert str(err.value) == message
+
+
+def test_centres_are_checked_against_the_distances(face):
+    """RBFCentres' sizes come from the distances: the transfer's set-up checks them, with the same
+    messages, and keeps the names as a tuple of str."""
+    D_vc, D_cc, M = face.D_vc, face.D_cc, face.M
+    centres = RBFCentres(n_markers=M, marker_names=face.names)
+    assert centres.marker_names == tuple(face.names)
+    assert RBFTransfer(D_vc, D_cc, centres=centres).marker_names == tuple(face.names)
+    cases = [
+        (RBFCentres(n_markers=0), OptionError, "n_markers: expected an integer in 1..49 (the number of centres); got 0"),
+        (RBFCentres(n_markers=M, marker_names=face.names[:-1]), OptionError, "marker_names: 40 names for 41 markers"),
+        (RBFCentres(n_markers=M, marker_names=["m00"] * M), OptionError, "marker_names: duplicated names m00"),
+        (RBFCentres(n_markers=M, collocation=(np.zeros((M, 3), int), np.ones((M, 3)) / 3)), None, None),
+        (RBFCentres(n_markers=M, collocation=(np.full((M, 3), len(face.V)), np.ones((M, 3)) / 3)), InputError,
+         f"collocation: triangle vertex indices outside 0..{len(face.V) - 1}"),
+    ]
+    for c, error, message in cases:
+        if error is None:
+            RBFTransfer(D_vc, D_cc, centres=c)
+            continue
+        with pytest.raises(error) as err:
+            RBFTransfer(D_vc, D_cc, centres=c)
+        assert str(err.value) == message
+    with pytest.raises(OptionError, match=r"^collocation applies to mode='interpolate' only$"):
+        RBFTransfer(D_vc, D_cc, settings=RBFSettings(mode="paper"), centres=cases[3][0])
+    with pytest.raises(OptionError, match=r"^settings: expected RBFSettings; got dict$"):
+        RBFTransfer(D_vc, D_cc, settings={"kernel": "gaussian"})
+
+
+def test_a_refused_system_still_reports_its_condition_number(face):
+    """fit() refuses a singular system; condition_number then gives what its SVD measured."""
+    C = face.C.copy()
+    C[7] = C[3]
+    D_cc = _euclid(C, C)
+    rbf = RBFTransfer(_euclid(face.V, C), D_cc, centres=RBFCentres(n_markers=face.M))
+    measured = np.linalg.cond(KERNELS["gaussian"](D_cc, rbf.widths))
+    assert rbf.condition_number == measured and 1e15 < measured < np.inf
+    with pytest.raises(ComputeError, match="singular"):
+        rbf.fit()
+    assert rbf.cache_info() == {"hits": 0, "misses": 0, "patterns": 0}
+
+
+def test_transfer_motion_is_the_fitted_transfer_applied(face):
+    D = _with_gaps(_motion(20, face.M))
+    settings, centres = RBFSettings(kernel="inverse_multiquadric"), RBFCentres(n_markers=face.M)
+    one_call = transfer_motion(face.D_vc, face.D_cc, D, settings=settings, centres=centres, dtype=np.float64)
+    solver = RBFTransfer(face.D_vc, face.D_cc, settings=settings, centres=centres).fit()
+    assert np.array_equal(one_call, solver.apply(D, dtype=np.float64))
+
+
+def test_public_names_are_where_they_were():
+    import usdface.rbf as rbf
+    from usdface.rbf.transfer import ADVICE_CONDITION, RBFTransfer as Direct, transfer_motion as direct_motion
+
+    assert rbf.RBFTransfer is Direct and rbf.transfer_motion is direct_motion
+    assert rbf.ADVICE_CONDITION == ADVICE_CONDITION == 1e10
+    assert {"RBFSettings", "RBFCentres"} <= set(rbf.__all__) <= set(dir(rbf))

@@ -7,7 +7,11 @@
   conditionally positive definite kernels need.
 - :mod:`usdface.rbf.stability`: the amplification guard (auto regularisation, warnings).
 - :mod:`usdface.rbf.transfer`: :class:`RBFTransfer`, the paper mode and the interpolating solve,
-  evaluated for whole sequences as one float32 matrix product, streamed in chunks of frames.
+  evaluated for whole sequences as one float32 matrix product, streamed in chunks of frames; its
+  options (:mod:`usdface.rbf.parameters`: :class:`RBFSettings`, :class:`RBFCentres`) and its parts:
+  the checked problem and system matrix (:mod:`usdface.rbf.system`), the fit and its diagnostics
+  (:mod:`usdface.rbf.solver`), validity patterns (:mod:`usdface.rbf.patterns`), the chunked
+  evaluation (:mod:`usdface.rbf.streaming`).
 - :mod:`usdface.rbf.build`: :func:`build_transfer`, the transfer with the pipeline's defaults and
   checks (used by the transfer processor and the quality evaluation).
 
@@ -30,6 +34,7 @@ _EXPORTS = {
     "PAPER_WIDTH_RULE": "stiffness", "WidthRule": "stiffness", "default_width": "stiffness",
     "default_width_rule": "stiffness", "local_marker_spacing": "stiffness", "median_marker_spacing": "stiffness",
     "median_marker_spacing_from_points": "stiffness", "resolve_widths": "stiffness", "transfer_widths": "stiffness",
+    "RBFCentres": "parameters", "RBFSettings": "parameters",
     "ADVICE_CONDITION": "transfer", "RBFTransfer": "transfer", "transfer_motion": "transfer",
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
@@ -44,6 +49,8 @@ __all__ = [
     "KERNELS",
     "LOCAL_WIDTH_RULE",
     "PAPER_WIDTH_RULE",
+    "RBFCentres",
+    "RBFSettings",
     "RBFTransfer",
     "SOUND_KERNELS",
     "TransferGeometry",

@@ -32,6 +32,7 @@ from .soundness import check_kernel_method, resolve_polynomial
 from .stability import (DEFAULT_MAX_AMPLIFICATION, WARN_AMPLIFICATION, AmplificationWarning, amplification,
                         amplification_warning, fit_stable, marker_residual)
 from .stiffness import WidthRule, default_width_rule, resolve_widths, transfer_widths
+from .parameters import RBFCentres, RBFSettings
 from .transfer import RBFTransfer
 
 __all__ = ["TransferSettings", "TransferGeometry", "build_transfer"]
@@ -178,15 +179,17 @@ def build_transfer(D_vc, D_cc, method: str, *, settings: TransferSettings = Tran
               if settings.check else settings.kernel)
     widths, rule = _widths(settings, D_cc, geometry)
     colloc = geometry.collocation
+    centres = RBFCentres(n_markers=geometry.n_markers, centre_points=geometry.centre_points,
+                         vertex_points=geometry.vertex_points, marker_names=geometry.marker_names,
+                         collocation=colloc if mode == "interpolate" else None)
 
     def make_solver(lam):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # conditioning: reported through info["advice"]
-            return RBFTransfer(D_vc, D_cc, mode=mode, kernel=kernel, widths=widths, polynomial=polynomial,
-                               regularization=lam, n_markers=geometry.n_markers, centre_points=geometry.centre_points,
-                               vertex_points=geometry.vertex_points, marker_names=geometry.marker_names,
-                               all_invalid=settings.all_invalid,
-                               collocation=colloc if mode == "interpolate" else None).fit()
+            return RBFTransfer(D_vc, D_cc, settings=RBFSettings(mode=mode, kernel=kernel, widths=widths,
+                                                                polynomial=polynomial, regularization=lam,
+                                                                all_invalid=settings.all_invalid),
+                               centres=centres).fit()
 
     choice = None
     if mode == "interpolate" and settings.regularization == "auto":

@@ -18,6 +18,10 @@ the centres whatever the asymmetry.
 
 Modes
 -----
+The options are two frozen dataclasses (:mod:`usdface.rbf.parameters`): :class:`RBFSettings`
+(mode, kernel, widths, polynomial term, regularisation, all-invalid policy) and :class:`RBFCentres`
+(how many centres are markers, their names and points, the collocation triangles).
+
 ``mode="interpolate"`` (default)
     Solve ``Phi_cc W = D`` (C x C; with ``polynomial=True`` the augmented system
     ``[[Phi_cc, P], [P^T, 0]] [W; c] = [D; 0]`` with ``P = [1, x, y, z]`` of the centre points),
@@ -68,56 +72,31 @@ of frames into a fresh (f, N, 3) array per chunk (or one reused buffer), so
 set-up included, uses numpy's linear algebra only: numpy and scipy each ship an OpenBLAS whose
 thread pools fight when calls alternate (scipy.linalg.lu_solve + numpy matmul in a per-frame loop
 ran 10-20x slower). ``blas_threads`` limits numpy's pool through threadpoolctl (e.g. inside a DCC).
+
+Where the parts live
+--------------------
+:mod:`usdface.rbf.parameters` (the options), :mod:`usdface.rbf.system` (the checked problem and
+its system matrix), :mod:`usdface.rbf.solver` (the fit, condition number and advice),
+:mod:`usdface.rbf.patterns` (validity patterns) and :mod:`usdface.rbf.streaming` (the chunked GEMM);
+this module puts them behind :class:`RBFTransfer`.
 """
 from __future__ import annotations
 
-import math
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 
 import numpy as np
 
-from ..errors import ComputeError, InputError, OptionError, list_names
-from .kernels import DECAYING_KERNELS, KERNELS, canonical_kernel_name
-from .stiffness import DEFAULT_WIDTH_FACTOR, resolve_widths
+from ..errors import ComputeError, OptionError
+from .parameters import ALL_INVALID_POLICIES, MODES, RBFCentres, RBFSettings, as_float_array, shape_error
+from .patterns import PatternCache
+from .solver import (ADVICE_CONDITION, COINCIDENT_RTOL, SINGULAR_CONDITION, FittedTransfer, conditioning_advice,
+                     fit_system, nearly_coincident)
+from .streaming import ChunkPlan, check_chunk_frames, generate_chunks, offset_rhs, plan_chunks
+from .system import RBFSystem
 
-__all__ = ["RBFTransfer", "transfer_motion", "ADVICE_CONDITION", "MODES", "ALL_INVALID_POLICIES"]
-
-#: condition number above which :attr:`RBFTransfer.advice` speaks up (and fit() warns)
-ADVICE_CONDITION = 1e10
-#: condition number (or an exactly singular LU) at which fit() refuses: the result is meaningless
-SINGULAR_CONDITION = 1e15
-#: centres closer than this fraction of their (smaller) kernel width count as nearly coincident
-COINCIDENT_RTOL = 1e-2
-MODES = ("interpolate", "paper")
-ALL_INVALID_POLICIES = ("error", "hold", "zero")
-
-_SETUP_BLOCK_BYTES = 32 << 20  # kernel evaluation block during fit()
-_CHUNK_BYTES = 64 << 20  # default output chunk size of iter_chunks()
-_GEMM_TEMP_BYTES = 32 << 20  # GEMM temporary (a block of frames) in iter_chunks()
-
-
-def check_chunk_frames(value) -> int:
-    """``value`` as frames per chunk: an integer >= 1, else an :class:`OptionError` naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise OptionError(f"chunk_frames: expected an integer >= 1; got {value!r}")
-    return int(value)
-
-
-def _shape_error(name: str, expected: str, arr) -> InputError:
-    return InputError(f"{name} must have shape {expected}; got {np.shape(arr)}")
-
-
-def _as_float_array(name: str, a) -> np.ndarray:
-    try:
-        arr = np.asarray(a)
-    except Exception as exc:  # pragma: no cover - exotic array-likes
-        raise InputError(f"{name}: cannot be read as an array ({exc})") from None
-    if arr.dtype.kind not in "fiu":
-        raise InputError(f"{name}: expected a numeric array; got dtype {arr.dtype}")
-    if arr.dtype.kind != "f":
-        arr = arr.astype(np.float64)
-    return arr
+__all__ = ["RBFTransfer", "transfer_motion", "RBFSettings", "RBFCentres", "ADVICE_CONDITION", "MODES",
+           "ALL_INVALID_POLICIES", "SINGULAR_CONDITION", "COINCIDENT_RTOL", "check_chunk_frames"]
 
 
 class RBFTransfer:
@@ -135,218 +114,70 @@ class RBFTransfer:
     D_cc : array_like, shape (C, C), float
         Centre-to-centre distances (mesh units), row j measured from centre j, not necessarily
         symmetric (see the module docstring), centres ordered markers first.
-    mode : {"interpolate", "paper"}
-        Interpolating solve, or the paper's Eqs. 1-5 (see the module docstring).
-    kernel : str
-        One of :data:`usdface.rbf.kernels.KERNELS` (``gaussian`` = paper Eq. 3).
-    widths : None, float, sequence or dict
-        Kernel width per centre (mesh units); see :func:`usdface.rbf.stiffness.resolve_widths`.
-        None: ``width_factor`` x the median nearest-marker distance of ``D_cc`` (the plain rule; the
-        pipeline's defaults come from :func:`usdface.rbf.stiffness.transfer_widths`, through
-        :func:`usdface.rbf.build.build_transfer`).
-    polynomial : bool
-        Interpolate mode only: add the linear polynomial term (reproduces affine motion exactly;
-        recommended with multiquadric, thin-plate spline and cubic). Needs ``centre_points`` and
-        ``vertex_points``.
+    settings : RBFSettings
+        Mode, kernel, widths, polynomial term, regularisation, width factor, all-invalid policy
+        (checked when the settings are made).
+    centres : RBFCentres
+        Number of markers, marker names, centre and vertex points (polynomial term), collocation;
+        checked here against the distances.
+
+    Attributes
+    ----------
+    settings : RBFSettings
+    centres : RBFCentres
+    mode, kernel, all_invalid : str
+        From ``settings`` (``kernel`` canonical).
     regularization : float
-        Interpolate mode only: lambda >= 0 added to the diagonal of Phi_cc (in kernel units; phi(0)
-        = 1 for gaussian and the multiquadrics). lambda > 0 smooths: the markers are no longer
-        reproduced exactly.
-    n_markers : int, optional
-        M, the number of markers (the first M centres); default C (no constraint centres).
-    centre_points : array_like, shape (C, 3), optional
-        Centre positions (mesh units), for the polynomial term.
-    vertex_points : array_like, shape (N, 3), optional
-        Vertex positions (mesh units), for the polynomial term.
-    marker_names : sequence of str, length M, optional
-        For per-marker width dicts and messages.
-    width_factor : float
-        Multiple of the marker spacing used by the default width rule.
-    all_invalid : {"error", "hold", "zero"}
-        What to do with frames where every marker is invalid.
-    collocation : (tri (M, 3) int, bary (M, 3) float), optional
-        Interpolate mode: impose the interpolation conditions on the field as the mesh shows it —
-        marker j's row of the system is the barycentric combination (``bary[j]``) of the kernel
-        rows of the vertices ``tri[j]`` of its triangle, instead of ``phi(D_cc[j])``. The vertex
-        displacements then reproduce every marker exactly at its bound surface point, whatever the
-        distance (hybrid distances jump where w crosses the threshold, so a marker's own distance
-        row and its neighbouring vertices' rows can disagree). Constraint centres keep their rows.
+    polynomial : bool
+    n_vertices, n_centres, n_markers : int
+        N, C, M.
+    marker_names : tuple of str or None
+    widths : ndarray, shape (C,), float64, read-only
+        Kernel width per centre (mesh units).
 
     Raises
     ------
     InputError
         Wrong shapes, NaN or negative distances, NaN/inf centre or vertex points.
     OptionError
-        Bad mode, kernel, widths, regularization, n_markers, all_invalid, or options that do not
-        apply to the mode.
+        Bad widths, n_markers or marker names, or options that do not apply to the mode (bad
+        mode, kernel, regularization or all_invalid are refused by :class:`RBFSettings`).
     ComputeError
         Infinite distances with a kernel that does not decay to zero.
 
     Examples
     --------
-    >>> rbf = RBFTransfer(D_vc, D_cc, n_markers=41).fit()            # doctest: +SKIP
-    >>> for frames, points in rbf.iter_chunks(displacements):         # doctest: +SKIP
+    >>> rbf = RBFTransfer(D_vc, D_cc, centres=RBFCentres(n_markers=41)).fit()   # doctest: +SKIP
+    >>> for frames, points in rbf.iter_chunks(displacements):                 # doctest: +SKIP
     ...     write(frames, rest_points + points)
     """
 
-    def __init__(
-        self,
-        D_vc,
-        D_cc,
-        *,
-        mode: str = "interpolate",
-        kernel: str = "gaussian",
-        widths=None,
-        polynomial: bool = False,
-        regularization: float = 0.0,
-        n_markers: int | None = None,
-        centre_points=None,
-        vertex_points=None,
-        marker_names: Sequence[str] | None = None,
-        width_factor: float = DEFAULT_WIDTH_FACTOR,
-        all_invalid: str = "error",
-        collocation=None,
-    ) -> None:
-        if mode not in MODES:
-            raise OptionError(f"mode: expected one of {', '.join(MODES)}; got {mode!r}")
-        self.mode = mode
-        self.kernel = canonical_kernel_name(kernel)
-        self._phi = KERNELS[self.kernel]
-        if all_invalid not in ALL_INVALID_POLICIES:
-            raise OptionError(f"all_invalid: expected one of {', '.join(ALL_INVALID_POLICIES)}; got {all_invalid!r}")
-        self.all_invalid = all_invalid
-        try:
-            lam = float(regularization)
-        except (TypeError, ValueError):
-            raise OptionError(f"regularization: expected a number >= 0; got {regularization!r}") from None
-        if not (math.isfinite(lam) and lam >= 0):
-            raise OptionError(f"regularization: expected a finite number >= 0; got {regularization!r}")
-        self.regularization = lam
-        self.polynomial = bool(polynomial)
-        if mode == "paper" and self.polynomial:
-            raise OptionError("polynomial=True applies to mode='interpolate' only (Eqs. 1-5 have no polynomial term)")
-        if mode == "paper" and canonical_kernel_name(kernel) not in DECAYING_KERNELS:
-            raise OptionError(f"kernel {kernel!r} does not decay with distance: paper mode (Eqs. 1-5, no solve) "
-                              f"needs one of {', '.join(sorted(DECAYING_KERNELS))}; use mode='interpolate'")
-        if mode == "paper" and lam > 0:
-            raise OptionError("regularization applies to mode='interpolate' only (paper mode solves no system)")
-
-        D_vc = _as_float_array("D_vc", D_vc)
-        D_cc = _as_float_array("D_cc", D_cc)
-        if D_vc.ndim != 2 or D_vc.shape[0] == 0 or D_vc.shape[1] == 0:
-            raise _shape_error("D_vc (vertex-to-centre distances)", "(N, C) with N, C >= 1", D_vc)
-        N, C = D_vc.shape
-        if D_cc.shape != (C, C):
-            raise _shape_error("D_cc (centre-to-centre distances)", f"(C, C) = ({C}, {C}) to match D_vc", D_cc)
-        M = C if n_markers is None else n_markers
-        if isinstance(M, bool) or not isinstance(M, (int, np.integer)) or not 1 <= M <= C:
-            raise OptionError(f"n_markers: expected an integer in 1..{C} (the number of centres); got {n_markers!r}")
-        self.n_vertices, self.n_centres, self.n_markers = int(N), int(C), int(M)
-        if marker_names is not None:
-            marker_names = tuple(str(n) for n in marker_names)
-            if len(marker_names) != M:
-                raise OptionError(f"marker_names: {len(marker_names)} names for {M} markers")
-            if len(set(marker_names)) != M:
-                dup = sorted({n for n in marker_names if marker_names.count(n) > 1})
-                raise OptionError(f"marker_names: duplicated names {list_names(dup)}")
-        self.marker_names = marker_names
-
-        for name, arr in (("D_vc", D_vc), ("D_cc", D_cc)):
-            nan = np.isnan(arr)
-            if nan.any():
-                raise InputError(f"{name}: {int(nan.sum())} distance(s) are NaN (e.g. at {tuple(int(i) for i in np.argwhere(nan)[0])})")
-            neg = arr < 0
-            if neg.any():
-                raise InputError(f"{name}: {int(neg.sum())} distance(s) are negative (e.g. at {tuple(int(i) for i in np.argwhere(neg)[0])})")
-            if self.kernel not in DECAYING_KERNELS and np.isinf(arr).any():
-                raise ComputeError(
-                    f"{name}: {int(np.isinf(arr).sum())} infinite distance(s) (unreachable pairs) but kernel "
-                    f"{self.kernel!r} does not decay to zero; use gaussian or inverse_multiquadric, or finite distances"
-                )
-        self._D_vc, self._D_cc = D_vc, D_cc
-
-        self._P_c = None
-        if self.polynomial:
-            if centre_points is None or vertex_points is None:
-                missing = [n for n, v in (("centre_points", centre_points), ("vertex_points", vertex_points)) if v is None]
-                raise OptionError(f"polynomial=True needs {' and '.join(missing)} (positions in mesh units)")
-            cp = _as_float_array("centre_points", centre_points)
-            vp = _as_float_array("vertex_points", vertex_points)
-            if cp.shape != (C, 3):
-                raise _shape_error("centre_points", f"(C, 3) = ({C}, 3)", cp)
-            if vp.shape != (N, 3):
-                raise _shape_error("vertex_points", f"(N, 3) = ({N}, 3)", vp)
-            for name, arr in (("centre_points", cp), ("vertex_points", vp)):
-                if not np.isfinite(arr).all():
-                    raise InputError(f"{name}: {int((~np.isfinite(arr)).any(axis=1).sum())} point(s) are NaN or infinite")
-            # P = [1, (x - c) / L]: the same polynomial space, better conditioned than raw coordinates
-            origin = cp.mean(axis=0)
-            scale = float(np.sqrt(((cp - origin) ** 2).sum(axis=1).mean()))
-            if not scale > 0:
-                raise ComputeError("polynomial term: all centre points coincide")
-            self._poly_origin, self._poly_scale = origin, scale
-            self._P_c = np.hstack([np.ones((C, 1)), (cp - origin) / scale])
-            self._vertex_points = vp
-
-        self.widths = resolve_widths(widths, D_cc, M, marker_names=marker_names, factor=width_factor)
-        self.widths.setflags(write=False)
-
-        self._colloc = None
-        if collocation is not None:
-            if mode != "interpolate":
-                raise OptionError("collocation applies to mode='interpolate' only")
-            tri = np.asarray(collocation[0], dtype=np.int64)
-            bary = np.asarray(collocation[1], dtype=np.float64)
-            if tri.shape != (M, 3) or bary.shape != (M, 3):
-                raise _shape_error("collocation", f"two arrays of shape (M, 3) = ({M}, 3)", tri)
-            if tri.min() < 0 or tri.max() >= N:
-                raise InputError(f"collocation: triangle vertex indices outside 0..{N - 1}")
-            self._colloc = (tri, bary)
-
-        self._fitted = False
-        self._B64 = self._B32 = None
-        self._cond: float | None = None
-        self._cache: dict[bytes, np.ndarray] = {}
-        self._hits = 0
-        self._misses = 0
+    def __init__(self, D_vc, D_cc, *, settings: RBFSettings = RBFSettings(),
+                 centres: RBFCentres = RBFCentres()) -> None:
+        if not isinstance(settings, RBFSettings):
+            raise OptionError(f"settings: expected RBFSettings; got {type(settings).__name__}")
+        if not isinstance(centres, RBFCentres):
+            raise OptionError(f"centres: expected RBFCentres; got {type(centres).__name__}")
+        self._system = RBFSystem(D_vc, D_cc, settings, centres)
+        self.settings, self.centres = settings, centres
+        self.mode, self.kernel, self.all_invalid = settings.mode, settings.kernel, settings.all_invalid
+        self.regularization, self.polynomial = settings.regularization, settings.polynomial
+        system = self._system
+        self.n_vertices, self.n_centres, self.n_markers = system.n_vertices, system.n_centres, system.n_markers
+        self.marker_names = system.marker_names
+        self.widths = system.widths
+        self._fitted: FittedTransfer | None = None
+        self._patterns: PatternCache | None = None
+        self._refused_condition: float | None = None  # measured by a fit that refused the system
 
     # ------------------------------------------------------------------ set-up
-    def _marker_label(self, j: int) -> str:
-        if j < self.n_markers:
-            return repr(self.marker_names[j]) if self.marker_names is not None else f"marker #{j}"
-        return f"constraint centre #{j - self.n_markers}"
-
-    def _kernel_rows(self, rows: slice, cols: slice | None = None) -> np.ndarray:
-        """Phi_vc[rows, cols] (float64) from D_vc, width of each column's centre."""
-        cols = slice(None) if cols is None else cols
-        return self._phi(self._D_vc[rows, cols], self.widths[cols])
-
-    def _system_matrix(self) -> np.ndarray:
-        """The full (all markers valid) system matrix A (C or C + 4 square)."""
-        phi_cc = self._phi(self._D_cc, self.widths)  # column k uses the width of centre k
-        C = self.n_centres
-        if self._colloc is not None:
-            tri, bary = self._colloc
-            rows = self._phi(self._D_vc[tri.ravel()], self.widths).reshape(tri.shape[0], 3, C)
-            phi_cc[: tri.shape[0]] = np.einsum("mt,mtc->mc", bary, rows)
-        if not self.polynomial:
-            A = phi_cc
-            A[np.diag_indices(C)] += self.regularization
-            return A
-        A = np.zeros((C + 4, C + 4))
-        A[:C, :C] = phi_cc
-        A[np.arange(C), np.arange(C)] += self.regularization
-        A[:C, C:] = self._P_c
-        A[C:, :C] = self._P_c.T
-        return A
-
     def fit(self) -> "RBFTransfer":
         """Factorise the system once and build the transfer matrix B (N x M).
 
         Interpolate mode: the 2-norm condition number of the (C [+ 4]) system (one SVD), one LU
         solve (partial pivoting) for ``Z = A^-1[:, :M]`` and ``B = [Phi_vc, P_v] @ Z`` (kernel evaluated in
         blocks of vertices). Paper mode: ``B[:, j] = Phi_vc[:, j] / sum_k Phi_cc[j, k]`` (Eqs. 4-5,
-        k over the markers). Also caches the all-valid pattern.
+        k over the markers). Also caches the all-valid pattern (see :func:`usdface.rbf.solver.fit_system`).
 
         Returns
         -------
@@ -364,66 +195,21 @@ class RBFTransfer:
         RuntimeWarning
             Condition number above :data:`ADVICE_CONDITION` (the warning text is :attr:`advice`).
         """
-        N, C, M = self.n_vertices, self.n_centres, self.n_markers
-        if self.mode == "interpolate":
-            A = self._system_matrix()
-            try:
-                self._cond = float(np.linalg.cond(A))  # 2-norm, SVD: O(C^3), once
-            except np.linalg.LinAlgError:  # pragma: no cover - SVD did not converge
-                self._cond = float("inf")
-            if not self._cond < SINGULAR_CONDITION:
-                raise ComputeError(f"RBF system is singular; cannot transfer. {self._build_advice()}")
-            E = np.zeros((A.shape[0], M))
-            E[np.arange(M), np.arange(M)] = 1.0
-            try:
-                Z = np.linalg.solve(A, E)  # LU with partial pivoting (LAPACK gesv); Z = A^-1[:, :M]
-            except np.linalg.LinAlgError:  # pragma: no cover - guarded by the condition check
-                raise ComputeError(f"RBF system is singular; cannot transfer. {self._build_advice()}") from None
-            self._Z_mm = np.ascontiguousarray(Z[:M, :M])
-            Zc = np.ascontiguousarray(Z[:C])
-            Zp = Z[C:] if self.polynomial else None
-            B = np.empty((N, M))
-            step = max(1, _SETUP_BLOCK_BYTES // (8 * C))
-            for a in range(0, N, step):
-                b = min(N, a + step)
-                np.matmul(self._kernel_rows(slice(a, b)), Zc, out=B[a:b])
-                if Zp is not None:
-                    pv = (self._vertex_points[a:b] - self._poly_origin) / self._poly_scale
-                    B[a:b] += Zp[0] + pv @ Zp[1:]
-        else:
-            phi_mm = self._phi(self._D_cc[:M, :M], self.widths[:M])
-            r = phi_mm.sum(axis=1)
-            bad = ~(np.isfinite(r) & (r > 0))
-            if bad.any():
-                labels = [self._marker_label(j) for j in np.flatnonzero(bad)]
-                raise ComputeError(
-                    f"paper mode: Eq. 4 sums sum_k phi(d_jk) are not positive for {list_names(labels)}; "
-                    f"kernel {self.kernel!r} cannot be used in paper mode here (use gaussian)"
-                )
-            self._phi_mm = phi_mm
-            self._r = r
-            B = np.empty((N, M))
-            step = max(1, _SETUP_BLOCK_BYTES // (8 * M))
-            for a in range(0, N, step):
-                b = min(N, a + step)
-                np.divide(self._kernel_rows(slice(a, b), slice(0, M)), r, out=B[a:b])
-            self._cond = None
-        if not np.isfinite(B).all():
-            raise ComputeError(f"RBF transfer matrix has non-finite entries. {self._build_advice()}")
-        B.setflags(write=False)
-        self._B64 = B
-        self._B32 = B.astype(np.float32)
-        self._B32.setflags(write=False)
-        self._cache = {np.ones(M, dtype=bool).tobytes(): np.eye(M)}
-        self._hits = self._misses = 0
-        self._fitted = True
-        if self._cond is not None and self._cond > ADVICE_CONDITION:
-            warnings.warn(self._build_advice(), RuntimeWarning, stacklevel=2)
+        try:
+            fitted = fit_system(self._system)
+        except ComputeError as err:
+            self._refused_condition = getattr(err, "condition", self._refused_condition)
+            raise
+        self._fitted = fitted
+        self._patterns = PatternCache(self._system, fitted)
+        if fitted.condition is not None and fitted.condition > ADVICE_CONDITION:
+            warnings.warn(conditioning_advice(self._system, fitted.condition), RuntimeWarning, stacklevel=2)
         return self
 
-    def _ensure_fitted(self) -> None:
-        if not self._fitted:
+    def _ensure_fitted(self) -> FittedTransfer:
+        if self._fitted is None:
             self.fit()
+        return self._fitted
 
     # ------------------------------------------------------------------ diagnostics
     @property
@@ -435,8 +221,7 @@ class RBFTransfer:
         marker). Interpolate mode: ``B = [Phi_vc, P_v] A^-1`` restricted to the marker columns;
         paper mode: ``B[i, j] = phi_j(d_ij) / sum_k phi_k(d_jk)`` (Eqs. 4-5).
         """
-        self._ensure_fitted()
-        return self._B64
+        return self._ensure_fitted().B64
 
     @property
     def condition_number(self) -> float | None:
@@ -446,12 +231,12 @@ class RBFTransfer:
         mode (no system is solved). Computed by :meth:`fit` with one SVD (O(C^3): milliseconds for
         tens or hundreds of centres, seconds for a few thousand).
         """
-        if not self._fitted:
+        if self._fitted is None:
             try:
                 self.fit()
             except ComputeError:
-                pass
-        return self._cond
+                return self._refused_condition
+        return self._fitted.condition
 
     def nearly_coincident(self, rtol: float = COINCIDENT_RTOL) -> list[tuple[str, str, float]]:
         """Pairs of centres closer than ``rtol`` times the smaller of their kernel widths.
@@ -462,39 +247,7 @@ class RBFTransfer:
             (label of centre j, label of centre k, distance in mesh units), closest first; labels are
             marker names (quoted) or ``constraint centre #p``. Distance is ``min(D_cc[j, k], D_cc[k, j])``.
         """
-        d = np.minimum(self._D_cc, self._D_cc.T)
-        w = self.widths
-        tol = rtol * np.minimum(w[:, None], w[None, :])
-        j, k = np.nonzero(np.triu(d < tol, k=1))
-        order = np.argsort(d[j, k], kind="stable")
-        return [(self._marker_label(int(j[o])), self._marker_label(int(k[o])), float(d[j[o], k[o]])) for o in order]
-
-    def _build_advice(self) -> str:
-        cond = self._cond
-        parts = []
-        if cond is None or not np.isfinite(cond):
-            parts.append("the interpolation matrix is singular")
-        else:
-            parts.append(f"the interpolation matrix has condition number {cond:.3g} (> {ADVICE_CONDITION:.0e}): "
-                         "the solve amplifies noise and round-off")
-        pairs = self.nearly_coincident()
-        if pairs:
-            shown = [f"{a} and {b} ({d:.3g} apart)" for a, b, d in pairs]
-            parts.append(f"nearly coincident centres (closer than {COINCIDENT_RTOL:g} x kernel width): {list_names(shown, limit=8)}; "
-                         "remove or merge duplicates (check the marker binding)")
-        w = self.widths
-        d = np.minimum(self._D_cc, self._D_cc.T).astype(np.float64)
-        np.fill_diagonal(d, np.inf)
-        nearest = d.min(axis=1)
-        ratio = nearest / w
-        parts.append(
-            f"kernel widths {w.min():.3g}..{w.max():.3g} mesh units vs nearest-centre distances down to "
-            f"{nearest.min():.3g}: try a smaller width, regularization > 0 (e.g. 1e-8..1e-3)"
-            + (", or a polynomial term with a polyharmonic kernel" if not self.polynomial else "")
-        )
-        if self.n_centres > self.n_markers and np.median(ratio[self.n_markers:]) < 0.5 * np.median(ratio[: self.n_markers]):
-            parts.append("constraint centres are much denser than the markers: subsample them to about the marker spacing")
-        return "; ".join(parts) + "."
+        return nearly_coincident(self._system, rtol)
 
     @property
     def advice(self) -> str | None:
@@ -507,7 +260,7 @@ class RBFTransfer:
         cond = self.condition_number
         if cond is None or cond <= ADVICE_CONDITION:
             return None
-        return self._build_advice()
+        return conditioning_advice(self._system, cond)
 
     def cache_info(self) -> dict[str, int]:
         """Validity-pattern cache statistics.
@@ -517,168 +270,31 @@ class RBFTransfer:
         pattern is computed by :meth:`fit` and counted neither as a miss nor, for all-valid frames,
         as a hit. Frames with no valid marker are not looked up.
         """
-        return {"hits": self._hits, "misses": self._misses, "patterns": len(self._cache)}
+        if self._patterns is None:
+            return {"hits": 0, "misses": 0, "patterns": 0}
+        return self._patterns.info()
 
     def clear_cache(self) -> None:
         """Forget every validity pattern except the all-valid one; reset the counters."""
-        full = np.ones(self.n_markers, dtype=bool).tobytes()
-        self._cache = {k: v for k, v in self._cache.items() if k == full}
-        self._hits = self._misses = 0
-
-    # ------------------------------------------------------------------ validity patterns
-    def _pattern_operator(self, valid: np.ndarray, frames: np.ndarray) -> np.ndarray:
-        """(M, |S|) operator E: effective marker displacements = E @ valid displacements."""
-        M = self.n_markers
-        S = np.flatnonzero(valid)
-        R = np.flatnonzero(~valid)
-        E = np.zeros((M, S.size))
-        where = lambda: (f"frame(s) {list_names(frames.tolist(), limit=8)} with invalid markers "
-                         f"{list_names([self._marker_label(int(r)) for r in R], limit=8)}")
-        if self.mode == "paper":
-            rS = self._phi_mm[np.ix_(S, S)].sum(axis=1)
-            if not (np.isfinite(rS) & (rS > 0)).all():
-                raise ComputeError(f"paper mode: Eq. 4 sums are not positive for {where()}")
-            E[S, np.arange(S.size)] = self._r[S] / rS
-            return E
-        if self.polynomial:
-            P_S = np.vstack([self._P_c[S], self._P_c[M:]])
-            if np.linalg.matrix_rank(P_S) < 4:
-                raise ComputeError(
-                    f"polynomial term: the valid centres of {where()} are coplanar or fewer than 4; "
-                    "the linear part is undetermined (add constraint centres or use polynomial=False)"
-                )
-        Z = self._Z_mm
-        Z_RR = Z[np.ix_(R, R)]
-        try:
-            K = np.linalg.solve(Z_RR, Z[np.ix_(R, S)])
-        except np.linalg.LinAlgError:
-            K = None
-        if K is None or not np.isfinite(K).all() or np.linalg.cond(Z_RR) > SINGULAR_CONDITION:
-            raise ComputeError(f"RBF system without the invalid markers is singular for {where()}")
-        E[S, np.arange(S.size)] = 1.0
-        E[R] = -K
-        return E
-
-    def _scan(self, disp: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[bytes]]:
-        """Validity of every frame; computes (and counts) every pattern before any output.
-
-        Returns (valid (F, M) bool, pattern id per frame (-1 for all-valid, -2 for none valid),
-        list of pattern keys by id).
-        """
-        F, M = disp.shape[:2]
-        valid = np.isfinite(disp).all(axis=2)
-        n_valid = valid.sum(axis=1)
-        none = np.flatnonzero(n_valid == 0)
-        if none.size and self.all_invalid == "error":
-            err = ComputeError(
-                f"{none.size} frame(s) have no valid marker: frame index(es) {list_names(none.tolist())} of {F}; "
-                "fill the gaps or use all_invalid='hold' or 'zero'"
-            )
-            err.frames = none.tolist()
-            raise err
-        pid = np.full(F, -1, dtype=np.int64)
-        pid[none] = -2
-        partial = np.flatnonzero((n_valid > 0) & (n_valid < M))
-        keys: list[bytes] = []
-        if partial.size:
-            uniq, inv, counts = np.unique(valid[partial], axis=0, return_inverse=True, return_counts=True)
-            inv = inv.ravel()
-            for u, (pattern, count) in enumerate(zip(uniq, counts)):
-                key = np.ascontiguousarray(pattern).tobytes()
-                keys.append(key)
-                if key in self._cache:
-                    self._hits += int(count)
-                else:
-                    self._cache[key] = self._pattern_operator(pattern, partial[inv == u])
-                    self._misses += 1
-                    self._hits += int(count) - 1
-            pid[partial] = inv
-        return valid, pid, keys
-
-    def _effective(self, disp: np.ndarray, valid: np.ndarray, pid: np.ndarray, keys: list[bytes],
-                   held: np.ndarray | None) -> np.ndarray:
-        """(f, M, 3) float64 effective marker displacements of a chunk (no NaN)."""
-        f, M = disp.shape[:2]
-        out = np.empty((f, M, 3))
-        full = pid == -1
-        out[full] = disp[full]
-        for u in np.unique(pid[pid >= 0]):
-            idx = np.flatnonzero(pid == u)
-            S = valid[idx[0]]
-            E = self._cache[keys[u]]
-            out[idx] = np.einsum("ms,fsc->fmc", E, disp[idx][:, S])
-        for i in np.flatnonzero(pid == -2):
-            if self.all_invalid == "hold" and (i > 0 or held is not None):
-                out[i] = out[i - 1] if i > 0 else held
-            else:
-                out[i] = 0.0
-        return out
+        if self._patterns is not None:
+            self._patterns.clear()
 
     # ------------------------------------------------------------------ evaluation
-    def _check_displacements(self, displacements) -> tuple[np.ndarray, bool]:
-        d = _as_float_array("displacements", displacements)
-        single = d.ndim == 2
-        if single:
+    def _check_displacements(self, displacements) -> np.ndarray:
+        d = as_float_array("displacements", displacements)
+        if d.ndim == 2:
             d = d[None]
         if d.ndim != 3 or d.shape[1:] != (self.n_markers, 3):
-            raise _shape_error("displacements", f"(F, M, 3) = (F, {self.n_markers}, 3) (or (M, 3) for one frame)", displacements)
-        return d, single
+            raise shape_error("displacements", f"(F, M, 3) = (F, {self.n_markers}, 3) (or (M, 3) for one frame)",
+                              displacements)
+        return d
 
-    def _gemm_buffer(self, frames: int, dtype) -> np.ndarray:
-        """GEMM temporary for blocks of up to ``frames`` frames, reused across chunks."""
-        sub = int(min(frames, max(1, _GEMM_TEMP_BYTES // (3 * self.n_vertices * np.dtype(dtype).itemsize))))
-        return np.empty((3 * sub, self.n_vertices), dtype=dtype)
-
-    def _evaluate(self, eff: np.ndarray, out: np.ndarray, tmp: np.ndarray | None = None, *,
-                  rhs: np.ndarray | None = None, extents: np.ndarray | None = None) -> None:
-        """out[k] = B @ eff[k] for every frame k of a chunk (out: (f, N, 3), C-contiguous).
-
-        One GEMM per block of frames, ``(3 f', M) @ B^T (M, N) -> (3 f', N)`` (rows ordered frame,
-        component), then three strided copies interleave x, y, z into the (f', N, 3) output. This
-        orientation keeps the GEMM efficient (B is streamed once per block of frames) and the
-        interleaving copy cheap; a per-frame product would re-read B every frame.
-
-        ``rhs`` (M + 3, N), from :meth:`_offset_rhs`, adds a per-vertex offset inside the same GEMM
-        (the extra rows of the left factor are the unit vectors of x, y, z); ``extents`` (f, 2, 3)
-        receives each frame's bounding box, reduced over the contiguous rows of the GEMM result
-        (much cheaper than over the interleaved output).
-        """
-        f, M = eff.shape[:2]
-        N = self.n_vertices
-        if rhs is None:
-            B = self._B32 if out.dtype == np.float32 else self._B64
-            rhs = B.T
-            lhs = np.ascontiguousarray(eff.transpose(0, 2, 1).reshape(3 * f, M), dtype=out.dtype)
-        else:
-            lhs = np.zeros((f, 3, M + 3), dtype=out.dtype)
-            lhs[:, :, :M] = eff.transpose(0, 2, 1)
-            lhs[:, np.arange(3), M + np.arange(3)] = 1.0
-            lhs = lhs.reshape(3 * f, M + 3)
-        if tmp is None:
-            tmp = self._gemm_buffer(f, out.dtype)
-        sub = tmp.shape[0] // 3
-        for a in range(0, f, sub):
-            b = min(f, a + sub)
-            t = np.matmul(lhs[3 * a : 3 * b], rhs, out=tmp[: 3 * (b - a)]).reshape(b - a, 3, N)
-            if extents is not None:
-                t.min(axis=2, out=extents[a:b, 0])
-                t.max(axis=2, out=extents[a:b, 1])
-            dst = out[a:b]
-            for c in range(3):
-                dst[:, :, c] = t[:, c, :]
-
-    def _offset_rhs(self, offset, dtype) -> np.ndarray:
-        """(M + 3, N) right factor ``[B^T; offset^T]`` of the GEMM that adds ``offset`` (N, 3)."""
-        off = _as_float_array("offset", offset)
-        if off.shape != (self.n_vertices, 3):
-            raise _shape_error("offset", f"(N, 3) = ({self.n_vertices}, 3)", offset)
-        if not np.isfinite(off).all():
-            raise InputError(f"offset: {int((~np.isfinite(off)).any(axis=1).sum())} point(s) are NaN or infinite")
-        B = self._B32 if np.dtype(dtype) == np.float32 else self._B64
-        rhs = np.empty((self.n_markers + 3, self.n_vertices), dtype=dtype)
-        rhs[: self.n_markers] = B.T
-        rhs[self.n_markers :] = off.T
-        return rhs
+    def _prepare(self, displacements, chunk_frames, dtype, blas_threads):
+        """Check the arguments, fit if needed and scan validity (raising before any output)."""
+        disp = self._check_displacements(displacements)
+        plan = plan_chunks(self.n_vertices, chunk_frames, dtype, blas_threads)
+        fitted = self._ensure_fitted()
+        return disp, self._patterns.scan(disp, self.all_invalid), plan, fitted
 
     def iter_chunks(
         self,
@@ -746,66 +362,15 @@ class RBFTransfer:
             Frames with no valid marker (``all_invalid="error"``), or a validity pattern whose
             reduced system is singular; raised before the first chunk.
         """
-        disp, scan, chunk_frames, dtype = self._prepare(displacements, chunk_frames, dtype, blas_threads)
-        rhs = None if offset is None else self._offset_rhs(offset, dtype)
+        disp, scan, plan, fitted = self._prepare(displacements, chunk_frames, dtype, blas_threads)
+        rhs = None if offset is None else offset_rhs(fitted, offset, plan.dtype)
         if buffers is not None and (isinstance(buffers, bool) or not isinstance(buffers, (int, np.integer))
                                     or buffers < 1):
             raise OptionError(f"buffers: expected an integer >= 1 or None; got {buffers!r}")
         n_buffers = 1 if reuse_buffer else (int(buffers) if buffers is not None else 0)
-        return self._generate(disp, scan, chunk_frames, dtype, blas_threads, n_buffers=n_buffers,
-                              rhs=rhs, extents=bool(extents))
-
-    def _prepare(self, displacements, chunk_frames, dtype, blas_threads):
-        """Check the arguments, fit if needed and scan validity (raising before any output)."""
-        disp, _ = self._check_displacements(displacements)
-        dtype = np.dtype(dtype)
-        if dtype not in (np.float32, np.float64):
-            raise OptionError(f"dtype: expected float32 or float64; got {dtype}")
-        if chunk_frames is None:
-            chunk_frames = max(1, _CHUNK_BYTES // (self.n_vertices * 3 * dtype.itemsize))
-        else:
-            chunk_frames = check_chunk_frames(chunk_frames)
-        if blas_threads is not None and (
-            isinstance(blas_threads, bool) or not isinstance(blas_threads, (int, np.integer)) or blas_threads < 1
-        ):
-            raise OptionError(f"blas_threads: expected an integer >= 1 or None; got {blas_threads!r}")
-        self._ensure_fitted()
-        return disp, self._scan(disp), chunk_frames, dtype
-
-    def _generate(self, disp, scan, chunk_frames, dtype, blas_threads, out=None, n_buffers=0,
-                  rhs=None, extents=False):
-        valid, pid, keys = scan
-        F = disp.shape[0]
-        if F == 0:
-            return
-        tmp = self._gemm_buffer(min(F, chunk_frames), dtype)
-        ring = []
-        if n_buffers and out is None:
-            ring = [np.empty((min(F, chunk_frames), self.n_vertices, 3), dtype=dtype)
-                    for _ in range(min(n_buffers, -(-F // chunk_frames)))]
-        limiter = None
-        if blas_threads is not None:
-            from threadpoolctl import ThreadpoolController
-
-            limiter = ThreadpoolController()
-        held = None
-        for i, a in enumerate(range(0, F, chunk_frames)):
-            b = min(F, a + chunk_frames)
-            eff = self._effective(disp[a:b], valid[a:b], pid[a:b], keys, held)
-            held = eff[-1].copy()
-            if out is not None:
-                chunk = out[a:b]
-            elif ring:
-                chunk = ring[i % len(ring)][: b - a]
-            else:
-                chunk = np.empty((b - a, self.n_vertices, 3), dtype=dtype)
-            boxes = np.empty((b - a, 2, 3), dtype=dtype) if extents else None
-            if limiter is None:
-                self._evaluate(eff, chunk, tmp, rhs=rhs, extents=boxes)
-            else:
-                with limiter.limit(limits=int(blas_threads), user_api="blas"):
-                    self._evaluate(eff, chunk, tmp, rhs=rhs, extents=boxes)
-            yield (slice(a, b), chunk, boxes) if extents else (slice(a, b), chunk)
+        plan = ChunkPlan(chunk_frames=plan.chunk_frames, dtype=plan.dtype, blas_threads=plan.blas_threads,
+                         n_buffers=n_buffers, rhs=rhs, extents=bool(extents))
+        return generate_chunks(fitted, self._patterns, self.all_invalid, disp, scan, plan)
 
     def apply(self, displacements, *, dtype=np.float32, chunk_frames: int | None = None,
               blas_threads: int | None = None) -> np.ndarray:
@@ -827,15 +392,16 @@ class RBFTransfer:
             :meth:`iter_chunks` (F x N x 12 bytes in float32).
         """
         single = np.ndim(displacements) == 2
-        disp, scan, chunk_frames, dtype = self._prepare(displacements, chunk_frames, dtype, blas_threads)
-        out = np.empty((disp.shape[0], self.n_vertices, 3), dtype=dtype)
-        for _ in self._generate(disp, scan, chunk_frames, dtype, blas_threads, out=out):
+        disp, scan, plan, fitted = self._prepare(displacements, chunk_frames, dtype, blas_threads)
+        out = np.empty((disp.shape[0], self.n_vertices, 3), dtype=plan.dtype)
+        for _ in generate_chunks(fitted, self._patterns, self.all_invalid, disp, scan, plan, out=out):
             pass  # each chunk is evaluated in place into its frame slice of out
         return out[0] if single else out
 
 
-def transfer_motion(D_vc, D_cc, displacements, *, dtype=np.float32, **options) -> np.ndarray:
-    """One call: ``RBFTransfer(D_vc, D_cc, **options).fit().apply(displacements)``.
+def transfer_motion(D_vc, D_cc, displacements, *, settings: RBFSettings = RBFSettings(),
+                    centres: RBFCentres = RBFCentres(), dtype=np.float32) -> np.ndarray:
+    """One call: ``RBFTransfer(D_vc, D_cc, settings=settings, centres=centres).fit().apply(displacements)``.
 
     Parameters
     ----------
@@ -845,14 +411,15 @@ def transfer_motion(D_vc, D_cc, displacements, *, dtype=np.float32, **options) -
         Centre-to-centre distances (mesh units).
     displacements : array_like, shape (F, M, 3)
         Marker displacements (mesh units), NaN for invalid samples.
+    settings : RBFSettings
+    centres : RBFCentres
+        As for :class:`RBFTransfer`.
     dtype : {numpy.float32, numpy.float64}
         Output type.
-    **options
-        Keyword options of :class:`RBFTransfer`.
 
     Returns
     -------
     ndarray, shape (F, N, 3), ``dtype``
         Vertex displacements (mesh units).
     """
-    return RBFTransfer(D_vc, D_cc, **options).fit().apply(displacements, dtype=dtype)
+    return RBFTransfer(D_vc, D_cc, settings=settings, centres=centres).fit().apply(displacements, dtype=dtype)
