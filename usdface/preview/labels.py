@@ -71,12 +71,27 @@ def _box_point_distance(boxes: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.hypot(dx, dy)
 
 
-def _search(i, anchors, sizes, *, taken, obstacles, image, gap, pad, leader_after, max_distance, own_nearest):
+@dataclass(frozen=True)
+class _SearchRules:
+    """Where a label may go (the settings of :func:`place_labels`, in pixels)."""
+
+    obstacles: np.ndarray
+    image: tuple
+    gap: float
+    pad: float
+    leader_after: float
+    max_distance: float
+    own_nearest: bool
+
+
+def _search(i, anchors, sizes, taken, rules: _SearchRules):
     """The first free box for label ``i`` (ring by ring) and whether it needs a leader line, or
     None; with ``own_nearest`` a box close enough to go without a leader line must be nearer to its
     own point than to any other (no label reads as another's; a leader line says whose it is)."""
     a, size = anchors[i], sizes[i]
-    w_img, h_img = image
+    obstacles, gap, pad, leader_after = rules.obstacles, rules.gap, rules.pad, rules.leader_after
+    max_distance, own_nearest = rules.max_distance, rules.own_nearest
+    w_img, h_img = rules.image
     n_ang = _ANGLES.size
     others = np.delete(anchors, i, axis=0)
     others = others[np.isfinite(others).all(axis=1)]
@@ -153,12 +168,12 @@ def place_labels(anchors, sizes, *, image_size, gap: float = 3.0, obstacles=None
     crowd = (d < 2.5 * np.median(sizes[:, 1])).sum(axis=1)
     order = np.lexsort((anchors[:, 0], anchors[:, 1], -crowd))
     taken = np.zeros((0, 4))
-    settings = dict(obstacles=obstacles, image=(w_img, h_img), gap=gap, pad=pad, leader_after=leader_after,
-                    max_distance=max_distance)
+    rules = _SearchRules(obstacles=obstacles, image=(w_img, h_img), gap=gap, pad=pad, leader_after=leader_after,
+                         max_distance=max_distance, own_nearest=own_nearest)
     for i in order:
         if not np.isfinite(anchors[i]).all():
             continue
-        found = _search(i, anchors, sizes, taken=taken, own_nearest=own_nearest, **settings)
+        found = _search(i, anchors, sizes, taken, rules)
         if found is not None:
             boxes[i], leader[i] = found
             placed[i] = True
