@@ -38,3 +38,31 @@ def test_a_good_movie_still_reads(sample_assets):
     with open_video(sample_assets / "video" / "animface_dots.mp4") as video:
         assert video.n_frames > 0 and video.rate > 0
         assert video.read(0).shape == (video.height, video.width, 3)
+
+
+@pytest.mark.parametrize("build", ["utils.logging only (OpenCV 4.12+)", "top level only (OpenCV 4.11)", "neither"])
+def test_opencv_is_quieted_whichever_log_level_api_the_build_has(build):
+    """OpenCV 4.12 and later have no top-level cv2.setLogLevel (every video read was an
+    AttributeError traceback with the wheel pip installs today); 4.11 has no cv2.utils.logging.
+    The level is set while the block runs and put back after, whichever the build offers."""
+    from types import SimpleNamespace
+
+    from usdface.io.video import _CV2_QUIET_LEVEL, _quiet
+
+    calls, level = [], [4]
+
+    def set_level(value):
+        calls.append(value)
+        previous, level[0] = level[0], value
+        return previous
+
+    api = SimpleNamespace(setLogLevel=set_level, getLogLevel=lambda: level[0])
+    cv2 = {"utils.logging only (OpenCV 4.12+)": SimpleNamespace(utils=SimpleNamespace(logging=api)),
+           "top level only (OpenCV 4.11)": SimpleNamespace(setLogLevel=set_level),
+           "neither": SimpleNamespace()}[build]
+    with _quiet(cv2):
+        inside = level[0]
+    if build == "neither":
+        assert calls == [] and level == [4]
+    else:
+        assert inside == _CV2_QUIET_LEVEL and calls == [_CV2_QUIET_LEVEL, 4] and level == [4]

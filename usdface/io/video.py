@@ -55,14 +55,32 @@ def _cv2():
     return cv2
 
 
+def _log_level_functions(cv2):
+    """OpenCV's (set, get) log level: ``cv2.utils.logging`` in the builds that have it (4.12 and
+    later dropped the top-level ``cv2.setLogLevel``), else the top-level pair; (None, None) when
+    the build has neither."""
+    for owner in (getattr(getattr(cv2, "utils", None), "logging", None), cv2):
+        setter = getattr(owner, "setLogLevel", None)
+        if setter is not None:
+            return setter, getattr(owner, "getLogLevel", None)
+    return None, None
+
+
 @contextlib.contextmanager
 def _quiet(cv2):
     """OpenCV's own warnings off while the block runs (usdface says what went wrong)."""
-    previous = cv2.setLogLevel(_CV2_QUIET_LEVEL)
+    setter, getter = _log_level_functions(cv2)
+    if setter is None:
+        yield
+        return
+    previous = getter() if getter is not None else None
+    returned = setter(_CV2_QUIET_LEVEL)
+    previous = returned if previous is None else previous
     try:
         yield
     finally:
-        cv2.setLogLevel(previous)
+        if previous is not None:
+            setter(previous)
 
 
 def _oiio(required_for: str | None = None):
