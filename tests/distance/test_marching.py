@@ -5,6 +5,7 @@ from __future__ import annotations
 import heapq
 import math
 import warnings
+from collections import deque
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from scipy.spatial import Delaunay
 
 from usdface.distance import DistanceWarning, GeodesicSolver, geodesic_distances
 from usdface.distance import graph as G
-from usdface.distance.marching import MarchingMesh, march, triangle_neighbours
+from usdface.distance.marching import MarchingMesh, march, queue_buckets, triangle_neighbours
 
 
 def planar_mesh(n=600, seed=0):
@@ -98,9 +99,15 @@ def test_split_tables_are_true_unfoldings():
     pts, tris = planar_mesh(300, seed=3)
     mm = MarchingMesh(pts, tris)
     b = np.repeat(np.arange(len(pts)), np.diff(mm.sptr))
-    u, w = mm.su.astype(int), mm.sw.astype(int)
-    for stored, x, y in ((mm.slo, u, w), (mm.slu, u, b), (mm.slw, w, b)):
+    u, w = mm.split_vertices[:, 0].astype(int), mm.split_vertices[:, 1].astype(int)
+    g = mm.split_geom.astype(np.float64)
+    for stored, x, y in ((g[:, 0], u, w), (g[:, 1], u, b), (g[:, 2], w, b)):
         np.testing.assert_allclose(stored, np.linalg.norm(pts[x] - pts[y], axis=1), rtol=1e-6)
+    # b in the frame u = origin, w on +x: (u->b . u->w / |uw|, -|cross| / |uw|)
+    ub, uw = pts[b] - pts[u], pts[w] - pts[u]
+    np.testing.assert_allclose(g[:, 3], np.einsum("ij,ij->i", ub, uw) / g[:, 0], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(g[:, 4], -np.abs(np.cross(uw, ub)[:, 2]) / g[:, 0], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(g[:, 5], 1 / g[:, 0], rtol=1e-6)
     # each split corner: b's two virtual triangles share w; (b, u) and (b, w) within 90 degrees
     assert (np.einsum("ij,ij->i", pts[u] - pts[b], pts[w] - pts[b]) >= -1e-9).all()
     nb = triangle_neighbours(tris)
@@ -176,26 +183,59 @@ def _frame(p, u, a, b):
     return L, bx, -math.sqrt(max(0.0, float(eb @ eb) - bx * bx))
 
 
-def reference_march(p, tris, splits, starts):
-    """Dijkstra order with heapq; each settled vertex updates the other two corners of its triangles
-    (edge and triangle candidates), reopening a settled vertex a later update shortens; obtuse
-    corners read their virtual triangles (from ``splits``, laid flat here from their lengths) when
-    they leave the queue."""
+class StrictQueue:
+    """Strict distance order (heapq)."""
+
+    def __init__(self):
+        self.heap = []
+
+    def push(self, d, v):
+        heapq.heappush(self.heap, (d, v))
+
+    def pop(self):
+        return heapq.heappop(self.heap)[1] if self.heap else None
+
+
+class BucketQueue:
+    """The kernel's untidy queue: buckets ``width`` wide, first in first out within one, starting
+    at the bucket of distance ``first``; a distance below the current bucket joins the current
+    bucket."""
+
+    def __init__(self, width, first):
+        self.inv, self.buckets, self.size = 1.0 / width, {}, 0
+        self.cur = int(first * self.inv)
+
+    def push(self, d, v):
+        self.buckets.setdefault(max(int(d * self.inv), self.cur), deque()).append(v)
+        self.size += 1
+
+    def pop(self):
+        if not self.size:
+            return None
+        while not self.buckets.get(self.cur):
+            self.cur += 1
+        self.size -= 1
+        return self.buckets[self.cur].popleft()
+
+
+def reference_march(p, tris, splits, starts, queue):
+    """Each vertex leaving ``queue`` (StrictQueue: Dijkstra order; BucketQueue) updates the other
+    two corners of its triangles (edge and triangle candidates), reopening a settled vertex a later
+    update shortens; obtuse corners read their virtual triangles (from ``splits``, laid flat here
+    from their lengths) when they leave the queue. ``starts``: (vertex, distance)."""
     corners: dict = {}
     for t in tris:
         for k in range(3):
             corners.setdefault(int(t[k]), []).append((int(t[(k + 1) % 3]), int(t[(k + 2) % 3])))
     n = len(p)
-    dist, done, heap = [math.inf] * n, [False] * n, []
+    dist, done = [math.inf] * n, [False] * n
     for v, d in starts:
-        dist[v] = min(dist[v], d)
-    for v, _ in starts:
-        heapq.heappush(heap, (dist[v], v))
-    while heap:
-        d, v = heapq.heappop(heap)
-        if done[v] or d > dist[v]:
+        dist[v] = d
+        queue.push(d, v)
+    while (v := queue.pop()) is not None:
+        if done[v]:
             continue
-        best = d
+        d = best = dist[v]
         for u, w, lo, lu, lw in splits.get(v, []):
             if done[w]:
                 c = dist[w] + lw
@@ -206,7 +246,7 @@ def reference_march(p, tris, splits, starts):
                 best = min(best, c)
         if best < d:
             dist[v] = best
-            heapq.heappush(heap, (best, v))
+            queue.push(best, v)
             continue
         done[v] = True
         for a, b in corners.get(v, []):
@@ -215,14 +255,14 @@ def reference_march(p, tris, splits, starts):
                     c = _through_edge(d, dist[other], *_frame(p, v, other, tgt))
                     if c < dist[tgt] * (1 - 1e-6):
                         done[tgt], dist[tgt] = False, c
-                        heapq.heappush(heap, (c, tgt))
+                        queue.push(c, tgt)
                 elif not done[tgt]:
                     c = d + float(np.linalg.norm(p[tgt] - p[v]))
                     if done[other]:
                         c = min(c, _through_edge(d, dist[other], *_frame(p, v, other, tgt)))
                     if c < dist[tgt]:
                         dist[tgt] = c
-                        heapq.heappush(heap, (c, tgt))
+                        queue.push(c, tgt)
     return np.array([dist[i] if done[i] else math.inf for i in range(n)])
 
 
@@ -234,16 +274,20 @@ def test_kernel_equals_slow_reference(shared_data):
     splits: dict = {}
     for b in range(len(pts)):
         for k in range(mm.sptr[b], mm.sptr[b + 1]):
-            splits.setdefault(b, []).append((int(mm.su[k]), int(mm.sw[k]), float(mm.slo[k]), float(mm.slu[k]),
-                                             float(mm.slw[k])))
+            (u, w), (lo, lu, lw) = mm.split_vertices[k], mm.split_geom[k, :3]
+            splits.setdefault(b, []).append((int(u), int(w), float(lo), float(lu), float(lw)))
     tri, bary = sources_in(tris, 4, seed=5)
     vertex, _, settled = march(mm, pts, tri, bary)
     assert (settled == len(pts)).all()
+    width = queue_buckets(mm)[0]
     for s in range(4):
         q = bary[s] @ pts[tri[s]]
-        starts = [(int(v), float(np.linalg.norm(pts[v] - q))) for v in set(tri[s].tolist())]
-        ref = reference_march(pts, tris, splits, starts)
+        starts = [(v, float(np.linalg.norm(pts[v] - q))) for v in dict.fromkeys(tri[s].tolist())]
+        ref = reference_march(pts, tris, splits, starts, BucketQueue(width, min(d for _, d in starts)))
         np.testing.assert_allclose(vertex[:, s], ref, rtol=2e-6, atol=1e-7)
+        # the untidy order moves distances by much less than the method's error (0.3-1 % here)
+        strict = reference_march(pts, tris, splits, starts, StrictQueue())
+        np.testing.assert_allclose(vertex[:, s], strict, rtol=3e-5, atol=1e-7)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -286,3 +330,117 @@ def test_degenerate_triangles_and_isolated_vertices():
         r = GeodesicSolver(pts, tris, backend="fmm", components="inf").solve(tri, bary)
     assert np.isfinite(r.vertex[:-1]).all() and np.isinf(r.vertex[-1]).all()
     assert r.vertex[dup, 0] == pytest.approx(r.vertex[tris[0, 0], 0], abs=1e-6)
+
+
+# ------------------------------------------------------------------------------------------------
+# the pieces: the triangle update with its bound, the tables, the report
+
+
+def test_through_edge_with_bound_equals_reference():
+    """The kernel's update returns the reference distance when it is below the bound, +inf when
+    it is not (a late-update check must never lengthen a settled distance)."""
+    from usdface.distance.marching import _through_edge as kernel
+    rng = np.random.default_rng(0)
+    checked = below = 0
+    for i in range(4000):
+        L = rng.uniform(0.2, 2.0)
+        px, py = rng.uniform(-1.0, 3.0), -rng.uniform(0.0, 2.0)
+        if i % 2:       # distances of a true source above the edge: the update usually applies
+            sx, sy = rng.uniform(-2.0, 4.0), rng.uniform(0.05, 5.0)
+            du, da = np.hypot(sx, sy), np.hypot(sx - L, sy)
+        else:           # any distances: circles that may not meet
+            du, da = rng.uniform(0.5, 6.0, 2)
+        ref = _through_edge(du, da, L, px, py)
+        bound = rng.choice([np.inf, ref * rng.uniform(0.9, 1.1) if np.isfinite(ref) else rng.uniform(1, 8)])
+        got = kernel(du, da, L, 1.0 / L, px, py, bound)
+        if ref < bound:
+            assert got == pytest.approx(ref, rel=1e-12), (du, da, L, px, py, bound)
+            below += 1
+        else:
+            assert got == np.inf, (du, da, L, px, py, bound, ref, got)
+        checked += np.isfinite(ref)
+    assert checked > 800 and below > 400
+
+
+def test_wedge_tables_equal_triangle_geometry(shared_data):
+    """Each vertex's wedges are its triangles' corners in triangle order, laid flat: lengths and
+    the far vertex's position in the frame (v at 0, the other on +x) from the points."""
+    from usdface.io.meshes import read_mesh
+    m = read_mesh(shared_data / "meshes" / "mediapipe_canonical_face_model_holes.obj")
+    p, t = m.points.astype(np.float64), m.triangles()
+    mm = MarchingMesh(p, t)
+    rows = {v: [] for v in range(len(p))}
+    for f in t:
+        for k in range(3):
+            rows[int(f[k])].append((int(f[(k + 1) % 3]), int(f[(k + 2) % 3])))
+    assert mm.ptr[-1] == 3 * len(t)
+    for v in range(0, len(p), 7):
+        got = mm.wedge_vertices[mm.ptr[v]:mm.ptr[v + 1]].tolist()
+        assert [tuple(r) for r in got] == rows[v]
+        for (a, b), g in zip(rows[v], mm.wedge_geom[mm.ptr[v]:mm.ptr[v + 1]].astype(np.float64)):
+            la, bx, by = _frame(p, v, a, b)
+            lb, ax, ay = _frame(p, v, b, a)
+            np.testing.assert_allclose(g, [la, lb, bx, by, ax, ay, 1 / la, 1 / lb], rtol=2e-6, atol=1e-6)
+
+
+def test_triangle_neighbours_equal_shared_edges():
+    """Across each edge: the other triangle holding it, -1 on the border; three triangles on one
+    edge link in a cycle by index."""
+    pts, tris = planar_mesh(60, seed=8)
+    extra = np.array([[tris[0, 0], tris[0, 1], len(pts)]])           # a fin on edge (t0[0], t0[1])
+    t = np.concatenate([tris, extra])
+    nb = triangle_neighbours(t)
+    for f in range(len(t)):
+        for k in range(3):
+            e = {int(t[f, k]), int(t[f, (k + 1) % 3])}
+            others = sorted(g for g in range(len(t)) if g != f and e <= set(t[g].tolist()))
+            want = -1 if not others else next((g for g in others if g > f), others[0])
+            assert nb[f, k] == want, (f, k, others)
+    assert (nb == -1).any() and (nb == len(tris)).any()         # a border; the fin is linked in
+
+
+def test_kernel_equals_slow_reference_on_the_makehuman_face(shared_data):
+    """Half of this face's triangles are obtuse: many splits, requeues and late updates."""
+    from usdface.io.meshes import read_mesh
+    m = read_mesh(shared_data / "meshes" / "makehuman_hm08_face_cm.obj")
+    pts, tris = m.points, m.triangles()
+    mm = MarchingMesh(pts, tris)
+    splits: dict = {}
+    for b in range(len(pts)):
+        for k in range(mm.sptr[b], mm.sptr[b + 1]):
+            (u, w), (lo, lu, lw) = mm.split_vertices[k], mm.split_geom[k, :3]
+            splits.setdefault(b, []).append((int(u), int(w), float(lo), float(lu), float(lw)))
+    rng = np.random.default_rng(7)
+    tri = tris[rng.choice(len(tris), 2, replace=False)]
+    bary = rng.dirichlet([2.0, 2.0, 2.0], size=2)
+    vertex, _, settled = march(mm, pts, tri, bary)
+    assert (settled == len(pts)).all()
+    width = queue_buckets(mm)[0]
+    for s in range(2):
+        q = bary[s] @ pts[tri[s]]
+        starts = [(v, float(np.linalg.norm(pts[v] - q))) for v in dict.fromkeys(tri[s].tolist())]
+        ref = reference_march(pts, tris, splits, starts, BucketQueue(width, min(d for _, d in starts)))
+        np.testing.assert_allclose(vertex[:, s], ref, rtol=2e-6, atol=1e-7)
+        strict = reference_march(pts, tris, splits, starts, StrictQueue())
+        np.testing.assert_allclose(vertex[:, s], strict, rtol=3e-5, atol=1e-7)
+
+
+def test_report_times_set_up_and_searches(caplog):
+    """The solver reports its set-up (first solve only) and its searches, and logs them on one
+    INFO line (benchmarks/bench_distances.py reads it from `usdface distances -v`)."""
+    import logging
+    import re
+    pts, tris = planar_mesh(200, seed=9)
+    solver = GeodesicSolver(pts, tris, backend="fmm")
+    tri, bary = sources_in(tris, 3, seed=3)
+    with caplog.at_level(logging.INFO, logger="usdface"):
+        first = solver.solve(tri, bary).report
+        second = solver.solve(tri[:2], bary[:2]).report
+    assert first.setup_seconds > 0 and first.search_seconds > 0 and first.threads >= 1
+    assert second.setup_seconds == 0.0 and second.search_seconds > 0     # tables reused
+    assert first.setup_seconds + first.search_seconds <= first.seconds
+    line = re.compile(r"geodesic fmm: (\d+) vertices x (\d+) sources in [\d.]+ s: set-up ([\d.]+) s, "
+                      r"searches ([\d.]+) s \(([\d.]+) s a source on (\d+) threads\)")
+    found = [line.search(r.getMessage()) for r in caplog.records]
+    found = [m for m in found if m]
+    assert [(int(m.group(1)), int(m.group(2))) for m in found] == [(len(pts), 3), (len(pts), 2)]

@@ -50,6 +50,7 @@ source lies on which component.
 """
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
 
@@ -58,11 +59,14 @@ import numpy as np
 from ..errors import ComputeError, InputError, OptionError, list_names
 from ..options import BACKENDS, DEFAULT_BACKEND  # the back-ends, named once with the command line's options
 from . import graph as _graph
+from .components import triangle_components
 from .euclidean import (_check_dtype, check_matrix_memory, pairwise_euclidean, source_points,
                         validate_sources, warn)
 
 __all__ = ["BACKENDS", "DEFAULT_BACKEND", "DistanceReport", "GeodesicResult", "GeodesicSolver", "auto_t_coef",
            "geodesic_distances"]
+
+log = logging.getLogger("usdface")
 
 COMPONENT_POLICIES = ("error", "euclidean", "inf")
 
@@ -135,6 +139,16 @@ class DistanceReport:
     memory_estimate : int
         Bytes the computation was estimated to need (checked against the memory available).
     seconds : float
+        The whole :meth:`GeodesicSolver.solve` call.
+    setup_seconds : float
+        Building the search structures before the first search: the solver's connected
+        components and, for ``"graph"`` the edge graph, for ``"fmm"`` the update tables; 0 when a
+        previous solve of the same solver built them.
+    search_seconds : float
+        ``"graph"``, ``"fmm"``: the searches themselves (all sources, wall time, ``threads`` in
+        parallel); the other back-ends: their solves.
+    threads : int
+        Threads the searches ran on (numba's, at most one per source).
     notes : list of str
     """
 
@@ -155,6 +169,9 @@ class DistanceReport:
     max_distance: float | None = None
     memory_estimate: int = 0
     seconds: float = 0.0
+    setup_seconds: float = 0.0
+    search_seconds: float = 0.0
+    threads: int = 1
     notes: list = field(default_factory=list)
 
 
@@ -216,6 +233,7 @@ class GeodesicSolver:
     def __init__(self, points, triangles, *, backend: str = DEFAULT_BACKEND, edges=None, t_coef="auto",
                  use_robust: bool = True, components: str = "error", dtype=np.float64,
                  memory_limit: int | None = None, engine: str = "auto") -> None:
+        started = time.perf_counter()
         if backend not in BACKENDS:
             raise OptionError(f"backend must be one of {', '.join(BACKENDS)}; got {backend!r}")
         if components not in COMPONENT_POLICIES:
@@ -246,13 +264,14 @@ class GeodesicSolver:
         self.dtype = _check_dtype(dtype)
         self.memory_limit = memory_limit
         self.engine = engine
-        tri_edges = _graph.mesh_edges(tris)
-        self.edges = tri_edges if edges is None else np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-        self.n_components, self.component_labels = _graph.connected_components(pts.shape[0], edges=tri_edges)
+        self._edges = None if edges is None else np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+        # from the triangles directly: the edge list (a sort of 3T keys) is built only for "graph"
+        self.n_components, self.component_labels = triangle_components(pts.shape[0], tris)
         self._graph = None
         self._marching = None
         self._field_cache: dict = {}
         self._last: tuple | None = None
+        self._setup_unreported = time.perf_counter() - started   # goes into the next report
         self.report: DistanceReport | None = None
 
     # -------------------------------------------------------------------------------------------
@@ -264,6 +283,14 @@ class GeodesicSolver:
     @property
     def n_points(self) -> int:
         return self.points.shape[0]
+
+    @property
+    def edges(self) -> np.ndarray:
+        """(E, 2) int64 edges the ``"graph"`` back-end searches along (the triangles' edges unless
+        given), built on first use."""
+        if self._edges is None:
+            self._edges = _graph.mesh_edges(self.triangles)
+        return self._edges
 
     @property
     def graph(self):
@@ -411,17 +438,23 @@ class GeodesicSolver:
         if fallback_note:
             report.notes.append(fallback_note)
             warn(fallback_note)
+        report.setup_seconds, self._setup_unreported = self._setup_unreported, 0.0
         if self.backend == "graph":
             vertex, sources = self._solve_graph(tri, bary, need, report, bound)
         elif self.backend == "fmm":
             vertex, sources = self._solve_fmm(tri, bary, need, report, bound)
         else:
+            searched = time.perf_counter()
             vertex, sources = self._solve_field(tri, bary, need, names, report)
+            report.search_seconds = time.perf_counter() - searched
             if bound is not None:
                 vertex[vertex > bound] = np.inf
                 sources[sources > bound] = np.inf
         vertex, sources = self._apply_component_policy(vertex, sources, tri, bary, src_comp, report)
         report.seconds = time.perf_counter() - t0
+        log.info("geodesic %s: %d vertices x %d sources in %.3f s: set-up %.3f s, searches %.3f s "
+                 "(%.4f s a source on %d threads)", self.backend, n, s, report.seconds, report.setup_seconds,
+                 report.search_seconds, report.search_seconds / max(s, 1), report.threads)
         self.report = report
         result = GeodesicResult(vertex, sources, report)
         self._last = (key, result)
@@ -429,9 +462,17 @@ class GeodesicSolver:
 
     # -------------------------------------------------------------------------------------------
     def _solve_graph(self, tri, bary, need, report, bound=None):
+        if self._graph is None:
+            started = time.perf_counter()
+            self._graph = _graph.edge_graph(self.points, self.edges)
+            report.setup_seconds += time.perf_counter() - started
+        searched = time.perf_counter()
         vertex, sources, settled = _graph.multi_source_shortest_paths(
-            self.graph, self.points, tri, bary, needed=need, dtype=self.dtype, engine=self.engine,
+            self._graph, self.points, tri, bary, needed=need, dtype=self.dtype, engine=self.engine,
             limit=np.inf if bound is None else bound)
+        report.search_seconds = time.perf_counter() - searched
+        if self.engine != "scipy" and _graph.HAVE_NUMBA:
+            report.threads = max(1, min(_graph._nb.get_num_threads(), tri.shape[0]))
         report.settled_fraction = float(settled.sum()) / float(self.n_points * tri.shape[0])
         if need is not None and (self.engine == "scipy" or not _graph.HAVE_NUMBA):
             report.notes.append("scipy engine: full searches (no bounded search without numba)")
@@ -439,11 +480,17 @@ class GeodesicSolver:
         return vertex, np.ascontiguousarray(sources.T)
 
     def _solve_fmm(self, tri, bary, need, report, bound=None):
-        from .marching import march
+        from .marching import MarchingMesh, march
 
-        mm = self.marching
-        vertex, sources, settled = march(mm, self.points, tri, bary, needed=need, dtype=self.dtype,
+        if self._marching is None:
+            started = time.perf_counter()
+            self._marching = MarchingMesh(self.points, self.triangles)
+            report.setup_seconds += time.perf_counter() - started
+        searched = time.perf_counter()
+        vertex, sources, settled = march(self._marching, self.points, tri, bary, needed=need, dtype=self.dtype,
                                          limit=np.inf if bound is None else bound)
+        report.search_seconds = time.perf_counter() - searched
+        report.threads = max(1, min(_graph._nb.get_num_threads(), tri.shape[0]))
         report.settled_fraction = float(settled.sum()) / float(self.n_points * tri.shape[0])
         # rows = evaluation point, columns = source (see GeodesicResult.sources)
         return vertex, np.ascontiguousarray(sources.T)

@@ -1,0 +1,421 @@
+"""The update tables of the fast-marching search (:mod:`usdface.distance.marching`), built once per mesh.
+
+Two tables, both in compressed rows over the vertices:
+
+- the *wedges*: every corner v of every triangle (v, a, b), with the triangle laid flat around v
+  (v at the origin, a on the x axis, b below it): what v's settling offers a and b;
+- the *splits* of obtuse corners (Kimmel and Sethian 1998, Sec. 4): a corner b wider than 90
+  degrees gets two virtual triangles (b, u, w) and (b, w, a), w a vertex unfolded from the
+  triangles across the opposite edge into b's plane until it falls within 90 degrees of both of b's
+  edges.
+
+Every pass is a numba kernel over the triangles (no sort: the rows are filled by counting), so
+the tables of a 560k-vertex face build in a fraction of a second; the geometry is computed in
+float64 and stored in float32 (it halves the memory the searches stream through).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..numba_cache import AVAILABLE as HAVE_NUMBA
+from ..numba_cache import njit, notice_compiling
+
+if HAVE_NUMBA:
+    from numba import prange
+else:  # pragma: no cover - numba is a dependency
+    prange = range
+
+__all__ = ["HAVE_NUMBA", "MarchingMesh", "marching_mesh_bytes", "search_bytes", "triangle_neighbours"]
+
+#: columns of :attr:`MarchingMesh.wedge_geom` and :attr:`MarchingMesh.split_geom`
+WEDGE_COLUMNS = ("la", "lb", "bx", "by", "ax", "ay", "inv_la", "inv_lb")
+SPLIT_COLUMNS = ("luw", "lub", "lwb", "bx", "by", "inv_luw")
+#: unfolding gives up after this many triangles (the corner then keeps its real triangle only)
+MAX_UNFOLD = 12
+
+
+class MarchingMesh:
+    """The update tables of one triangle mesh, built once and shared by every search.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), float
+        Vertex positions, mesh units.
+    triangles : array_like, shape (T, 3), int
+    max_unfold : int
+        Triangles an obtuse corner's unfolding may cross.
+
+    Attributes
+    ----------
+    n_points : int
+    ptr : ndarray, shape (N + 1,), int64
+        Wedges of vertex v: rows ``ptr[v]:ptr[v + 1]`` (triangle order).
+    wedge_vertices : ndarray, shape (W, 2), int32
+        For each corner v of each triangle (v, a, b): a and b.
+    wedge_geom : ndarray, shape (W, 8), float32
+        :data:`WEDGE_COLUMNS`: ``|va|``, ``|vb|``; b at (bx, by) in the frame v = origin, a on
+        +x (by <= 0); a at (ax, ay) in the frame v = origin, b on +x (ay <= 0); ``1 / |va|``,
+        ``1 / |vb|`` (0 for a zero-length side). Mesh units.
+    sptr : ndarray, shape (N + 1,), int64
+        Split rows targeting vertex b: ``sptr[b]:sptr[b + 1]``.
+    split_vertices : ndarray, shape (K, 2), int32
+        Each virtual triangle (u, w) seen from its target b.
+    split_geom : ndarray, shape (K, 6), float32
+        :data:`SPLIT_COLUMNS`: ``|uw|``, ``|ub|``, ``|wb|`` (unfolded), b at (bx, by) in the frame
+        u = origin, w on +x (by <= 0), ``1 / |uw|``.
+    n_obtuse, n_split : int
+        Obtuse corners, and those split (the others keep their real triangle's update only).
+    """
+
+    _arrays = ("ptr", "wedge_vertices", "wedge_geom", "sptr", "split_vertices", "split_geom")
+
+    def __init__(self, points, triangles, *, max_unfold: int = MAX_UNFOLD):
+        if not HAVE_NUMBA:  # pragma: no cover
+            raise InputError("backend='fmm' needs numba (pip install numba)")
+        p = np.ascontiguousarray(points, dtype=np.float64)
+        t = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
+        n = p.shape[0]
+        self.n_points = n
+        notice_compiling("the geodesic search kernels", _wedge_tables, _split_tables, _vertex_triangles)
+        self.ptr, self.wedge_vertices, self.wedge_geom = _wedge_tables(p, t, n)
+        vt_ptr, vt = _vertex_triangles(t, n)
+        nb = _triangle_neighbours(t, vt_ptr, vt)
+        counts = np.zeros(2, dtype=np.int64)
+        slot_b, slot_v, slot_g = _split_tables(p, t, nb, int(max_unfold), counts)
+        del nb, vt_ptr, vt
+        self.sptr, self.split_vertices, self.split_geom = _rows_by_target(slot_b, slot_v, slot_g, n)
+        self.n_obtuse, self.n_split = int(counts[0]), int(counts[1])
+
+    @property
+    def nbytes(self) -> int:
+        return sum(getattr(self, k).nbytes for k in self._arrays)
+
+    @property
+    def mean_edge(self) -> float:
+        """Mean length of the wedges' sides (mesh units; 0 for a mesh without one)."""
+        return float(self.wedge_geom[:, 0].mean(dtype=np.float64)) if self.wedge_geom.size else 0.0
+
+    def tables(self) -> tuple:
+        return tuple(getattr(self, k) for k in self._arrays)
+
+
+def marching_mesh_bytes(n_points: int, n_triangles: int) -> int:
+    """Upper bound of :class:`MarchingMesh`'s memory for a mesh of this size (bytes), including
+    the temporaries of building it."""
+    wedges = 3 * n_triangles * (2 * 4 + 8 * 4)
+    splits = 2 * n_triangles * (2 * 4 + 6 * 4)    # at most one obtuse corner per triangle, 2 splits
+    # corner slots, triangles around vertices, neighbours (int64, 3 per triangle), split slots
+    build = n_triangles * (3 * 3 * 8 + 2 * (8 + 2 * 4 + 6 * 4)) + 2 * 8 * (n_points + 1)
+    return 2 * 8 * (n_points + 1) + wedges + splits + build
+
+
+def search_bytes(n_points: int) -> int:
+    """Scratch memory of one running search (distance, settled flag, its row of the result), bytes;
+    the bucket queue holds only the front (small)."""
+    return n_points * (8 + 1 + 8)
+
+
+def triangle_neighbours(triangles) -> np.ndarray:
+    """(T, 3) triangle across edge k = (t[f, k], t[f, k + 1]) of each triangle, -1 on a border.
+
+    A non-manifold edge (three or more triangles) links its triangles in a cycle (each to the
+    next higher index, the highest to the lowest).
+    """
+    t = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
+    n = int(t.max()) + 1 if t.size else 0
+    vt_ptr, vt = _vertex_triangles(t, n)
+    return _triangle_neighbours(t, vt_ptr, vt)
+
+
+@njit(cache=True, parallel=True)
+def _wedge_tables(p, t, n):
+    """The wedge rows (see :class:`MarchingMesh`): each vertex's corners in triangle order.
+
+    Parameters
+    ----------
+    p : (N, 3) float64; t : (T, 3) int64; n : int, N
+
+    Returns
+    -------
+    ptr : (N + 1,) int64 row offsets; (W, 2) int32 wedge vertices; (W, 8) float32 wedge geometry.
+    """
+    nt = t.shape[0]
+    # rows by counting (a stable counting sort of the corners by vertex), then the geometry of
+    # every corner in parallel
+    ptr = np.zeros(n + 1, np.int64)
+    slot = np.full(3 * nt, -1, np.int64)
+    for f in range(nt):
+        if t[f, 0] != t[f, 1] and t[f, 1] != t[f, 2] and t[f, 0] != t[f, 2]:
+            for c in range(3):
+                ptr[t[f, c] + 1] += 1
+    for v in range(n):
+        ptr[v + 1] += ptr[v]
+    fill = ptr[:-1].copy()
+    for f in range(nt):
+        if t[f, 0] != t[f, 1] and t[f, 1] != t[f, 2] and t[f, 0] != t[f, 2]:
+            for c in range(3):
+                slot[3 * f + c] = fill[t[f, c]]
+                fill[t[f, c]] += 1
+    wv = np.empty((ptr[n], 2), np.int32)
+    wg = np.empty((ptr[n], 8), np.float32)
+    for f in prange(nt):
+        for c in range(3):
+            k = slot[3 * f + c]
+            if k < 0:
+                continue
+            v = t[f, c]
+            a = t[f, (c + 1) % 3]
+            b = t[f, (c + 2) % 3]
+            ax = p[a, 0] - p[v, 0]
+            ay = p[a, 1] - p[v, 1]
+            az = p[a, 2] - p[v, 2]
+            bx = p[b, 0] - p[v, 0]
+            by = p[b, 1] - p[v, 1]
+            bz = p[b, 2] - p[v, 2]
+            la = np.sqrt(ax * ax + ay * ay + az * az)
+            lb = np.sqrt(bx * bx + by * by + bz * bz)
+            cx = ay * bz - az * by
+            cy = az * bx - ax * bz
+            cz = ax * by - ay * bx
+            sin_ = np.sqrt(cx * cx + cy * cy + cz * cz)
+            cos_ = ax * bx + ay * by + az * bz
+            norm = np.hypot(cos_, sin_)
+            # a flat triangle (zero area) keeps its edges: a straight angle; a zero-length side
+            # gives edge candidates only (the triangle update refuses L = 0)
+            if norm <= 0.0:
+                cos_, sin_, norm = 1.0, 0.0, 1.0
+            cos_ /= norm
+            sin_ /= norm
+            wv[k, 0] = a
+            wv[k, 1] = b
+            wg[k, 0] = la
+            wg[k, 1] = lb
+            wg[k, 2] = lb * cos_
+            wg[k, 3] = -lb * sin_
+            wg[k, 4] = la * cos_
+            wg[k, 5] = -la * sin_
+            wg[k, 6] = 1.0 / la if la > 0.0 else 0.0
+            wg[k, 7] = 1.0 / lb if lb > 0.0 else 0.0
+    return ptr, wv, wg
+
+
+@njit(cache=True, nogil=True)
+def _rows_by_target(slot_b, slot_v, slot_g, n):
+    """The filled split slots as rows grouped by target vertex (a stable counting sort).
+
+    Returns
+    -------
+    sptr : (N + 1,) int64; (K, 2) int32 split vertices; (K, 6) float32 split geometry.
+    """
+    sptr = np.zeros(n + 1, np.int64)
+    for i in range(slot_b.size):
+        if slot_b[i] >= 0:
+            sptr[slot_b[i] + 1] += 1
+    for v in range(n):
+        sptr[v + 1] += sptr[v]
+    sv = np.empty((sptr[n], 2), np.int32)
+    sg = np.empty((sptr[n], slot_g.shape[1]), np.float32)
+    fill = sptr[:-1].copy()
+    for i in range(slot_b.size):
+        b = slot_b[i]
+        if b < 0:
+            continue
+        k = fill[b]
+        fill[b] += 1
+        sv[k, 0] = slot_v[i, 0]
+        sv[k, 1] = slot_v[i, 1]
+        for j in range(slot_g.shape[1]):
+            sg[k, j] = slot_g[i, j]
+    return sptr, sv, sg
+
+
+@njit(cache=True, nogil=True)
+def _vertex_triangles(t, n):
+    """Triangles around each vertex (CSR: ``vt[vt_ptr[v]:vt_ptr[v + 1]]``, increasing), each
+    triangle listed once per distinct vertex."""
+    cnt = np.zeros(n + 1, np.int64)
+    for f in range(t.shape[0]):
+        for c in range(3):
+            v = t[f, c]
+            if c == 0 or (v != t[f, 0] and (c == 1 or v != t[f, 1])):
+                cnt[v + 1] += 1
+    for v in range(n):
+        cnt[v + 1] += cnt[v]
+    vt = np.empty(cnt[n], np.int64)
+    fill = cnt[:-1].copy()
+    for f in range(t.shape[0]):
+        for c in range(3):
+            v = t[f, c]
+            if c == 0 or (v != t[f, 0] and (c == 1 or v != t[f, 1])):
+                vt[fill[v]] = f
+                fill[v] += 1
+    return cnt, vt
+
+
+@njit(cache=True, nogil=True)
+def _has_edge(t, g, x0, x1):
+    """Whether triangle g has the edge {x0, x1} (two of its corners; x0 == x1 needs the
+    vertex twice)."""
+    n0 = 0
+    n1 = 0
+    for c in range(3):
+        n0 += t[g, c] == x0
+        n1 += t[g, c] == x1
+    return n0 >= 2 if x0 == x1 else (n0 >= 1 and n1 >= 1)
+
+
+@njit(cache=True, parallel=True)
+def _triangle_neighbours(t, vt_ptr, vt):
+    """(T, 3) int64: the triangle across each edge (see :func:`triangle_neighbours`)."""
+    nt = t.shape[0]
+    out = np.full((nt, 3), -1, np.int64)
+    for f in prange(nt):
+        for k in range(3):
+            x0 = t[f, k]
+            x1 = t[f, (k + 1) % 3]
+            nxt = -1        # smallest sharing triangle above f, else the smallest overall
+            low = -1
+            for j in range(vt_ptr[x0], vt_ptr[x0 + 1]):
+                g = vt[j]
+                if g == f or not _has_edge(t, g, x0, x1):
+                    continue
+                if low < 0:
+                    low = g
+                if g > f:
+                    nxt = g
+                    break
+            out[f, k] = nxt if nxt >= 0 else low
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _emit(slot_b, slot_v, slot_g, k, b, u, w, ux, uy, wx, wy):
+    """Slot k = virtual triangle (u at (ux, uy), w at (wx, wy)) of target b at the origin;
+    left empty (b = -1) when degenerate."""
+    ex = wx - ux
+    ey = wy - uy
+    lo = np.sqrt(ex * ex + ey * ey)
+    lu = np.sqrt(ux * ux + uy * uy)
+    lw = np.sqrt(wx * wx + wy * wy)
+    if lo <= 0.0 or lu <= 0.0 or lw <= 0.0:
+        return
+    cos_u = (-ex * ux - ey * uy) / (lo * lu)
+    sin_u = abs(-ex * uy + ey * ux) / (lo * lu)
+    slot_b[k] = b
+    slot_v[k, 0] = u
+    slot_v[k, 1] = w
+    slot_g[k, 0] = lo
+    slot_g[k, 1] = lu
+    slot_g[k, 2] = lw
+    slot_g[k, 3] = lu * cos_u
+    slot_g[k, 4] = -lu * sin_u
+    slot_g[k, 5] = 1.0 / lo
+
+
+@njit(cache=True, nogil=True)
+def _unfold(p, t, nb, f, b, u, a, ux, ax, ay, max_unfold):
+    """Unfold the triangles across edge (u, a) of triangle f into the plane of its obtuse
+    corner b (b at the origin, u at (ux, 0), a at (ax, ay)) until a vertex w falls within 90
+    degrees of both b -> u and b -> a. Returns (w, wx, wy), w = -1 when none is found."""
+    cu, ca = u, a                    # the edge crossed next: cu at (px, py), ca at (qx, qy)
+    px, py, qx, qy = ux, 0.0, ax, ay
+    xx, xy = 0.0, 0.0                # the vertex behind that edge (starts at b)
+    g = np.int64(f)                  # (a prange index is unsigned: keep g signed)
+    for _ in range(max_unfold):
+        ke = -1
+        for kk in range(3):
+            x0 = t[g, kk]
+            x1 = t[g, (kk + 1) % 3]
+            if (x0 == cu and x1 == ca) or (x0 == ca and x1 == cu):
+                ke = kk
+        if ke < 0:
+            break
+        h = nb[g, ke]
+        if h < 0:
+            break
+        w = -1
+        for kk in range(3):
+            if t[h, kk] != cu and t[h, kk] != ca:
+                w = t[h, kk]
+        if w < 0 or w == b:
+            break
+        luw2 = 0.0
+        law2 = 0.0
+        for d in range(3):
+            luw2 += (p[w, d] - p[cu, d]) ** 2
+            law2 += (p[w, d] - p[ca, d]) ** 2
+        ex = qx - px
+        ey = qy - py
+        L = np.sqrt(ex * ex + ey * ey)
+        if L <= 0.0:
+            break
+        ex /= L
+        ey /= L
+        x = (luw2 - law2 + L * L) / (2.0 * L)
+        y = np.sqrt(max(0.0, luw2 - x * x))
+        nx, ny = -ey, ex             # w goes on the side of the edge away from X
+        if (xx - px) * nx + (xy - py) * ny > 0.0:
+            nx, ny = -nx, -ny
+        cx = px + x * ex + y * nx
+        cy = py + x * ey + y * ny
+        in_u = cx >= 0.0                     # within 90 degrees of b -> u
+        in_a = cx * ax + cy * ay >= 0.0      # within 90 degrees of b -> a
+        if in_u and in_a:
+            return w, cx, cy
+        if not in_u:        # past the section on a's side: cross edge (cu, w) next
+            xx, xy = qx, qy
+            ca = w
+            qx, qy = cx, cy
+        else:               # on u's side: cross edge (w, ca) next
+            xx, xy = px, py
+            cu = w
+            px, py = cx, cy
+        g = h
+    return -1, 0.0, 0.0
+
+
+@njit(cache=True, parallel=True)
+def _split_tables(p, t, nb, max_unfold, counts):
+    """Two slots per triangle (a triangle has at most one obtuse corner): target b (-1 for an
+    empty slot), (u, w) and the geometry (:data:`SPLIT_COLUMNS`). ``counts`` receives
+    (obtuse corners, split corners)."""
+    nt = t.shape[0]
+    slot_b = np.full(2 * nt, -1, np.int64)
+    slot_v = np.empty((2 * nt, 2), np.int32)
+    slot_g = np.empty((2 * nt, 6), np.float32)
+    obtuse = np.zeros(nt, np.int64)
+    split = np.zeros(nt, np.int64)
+    for f in prange(nt):
+        for c in range(3):
+            b = t[f, c]
+            u = t[f, (c + 1) % 3]
+            a = t[f, (c + 2) % 3]
+            if b == u or b == a or u == a:
+                continue
+            vux = p[u, 0] - p[b, 0]
+            vuy = p[u, 1] - p[b, 1]
+            vuz = p[u, 2] - p[b, 2]
+            vax = p[a, 0] - p[b, 0]
+            vay = p[a, 1] - p[b, 1]
+            vaz = p[a, 2] - p[b, 2]
+            lu = np.sqrt(vux * vux + vuy * vuy + vuz * vuz)
+            la = np.sqrt(vax * vax + vay * vay + vaz * vaz)
+            if lu <= 0.0 or la <= 0.0:
+                continue
+            cb = (vux * vax + vuy * vay + vuz * vaz) / (lu * la)
+            if cb >= -1e-9 or obtuse[f] > 0:
+                continue
+            obtuse[f] = 1
+            # b at the origin, u on the x axis, a at angle beta > 90 degrees
+            ax = la * cb
+            ay = la * np.sqrt(max(0.0, 1.0 - cb * cb))
+            w, wx, wy = _unfold(p, t, nb, f, b, u, a, lu, ax, ay, max_unfold)
+            if w < 0 or w == u or w == a:
+                continue
+            split[f] = 1
+            _emit(slot_b, slot_v, slot_g, 2 * f, b, u, w, lu, 0.0, wx, wy)
+            _emit(slot_b, slot_v, slot_g, 2 * f + 1, b, a, w, ax, ay, wx, wy)
+    counts[0] = obtuse.sum()
+    counts[1] = split.sum()
+    return slot_b, slot_v, slot_g
