@@ -321,8 +321,13 @@ def _at_point(p0, p1, p2, d0, d1, d2, q):
 
 @njit(cache=True, parallel=True)
 def _march_many(ptr, wv, wg, sptr, sv, sg, start_ptr, start_v, start_d, needed, n_needed, limit, slack,
-                width, n_buckets, pts, sink_tri, sink_q, direct_ptr, direct_to, direct_d, out_v, out_s, settled):
-    """All sources, in parallel: row s of ``out_v`` (S, N) and ``out_s`` (S, S) from source s."""
+                width, n_buckets, rank, pts, sink_tri, sink_q, direct_ptr, direct_to, direct_d, out_v, out_s,
+                settled):
+    """All sources, in parallel: row s of ``out_v`` (S, N) and ``out_s`` (S, S) from source s.
+
+    Vertices are in the tables' order except the columns of ``out_v``: column i is the mesh's
+    vertex i, at position ``rank[i]`` of the tables.
+    """
     n = ptr.size - 1
     n_src = start_ptr.size - 1
     for s in prange(n_src):
@@ -336,7 +341,7 @@ def _march_many(ptr, wv, wg, sptr, sv, sg, start_ptr, start_v, start_d, needed, 
                 dist[i] = np.inf
         row = out_v[s]
         for i in range(n):
-            row[i] = dist[i]
+            row[i] = dist[rank[i]]
         for j in range(n_src):
             t0, t1, t2 = sink_tri[j, 0], sink_tri[j, 1], sink_tri[j, 2]
             if t0 == t1 and t1 == t2:
@@ -389,8 +394,9 @@ def march(mesh: MarchingMesh, points, source_tri_vertices, source_barycentrics, 
     n = p.shape[0]
     if n != mesh.n_points:
         raise InputError(f"march: {n} points for a marching mesh of {mesh.n_points}")
-    tri = np.asarray(source_tri_vertices, dtype=np.int64).reshape(-1, 3)
     bary = np.asarray(source_barycentrics, dtype=np.float64).reshape(-1, 3)
+    tri = mesh.rank[np.asarray(source_tri_vertices, dtype=np.int64).reshape(-1, 3)]     # the tables' order
+    p = mesh.points
     s = tri.shape[0]
     start_ptr, sv, sd, _, _, _, direct = source_starts(p, tri, bary)
     if direct.size:
@@ -408,6 +414,7 @@ def march(mesh: MarchingMesh, points, source_tri_vertices, source_barycentrics, 
         if n_needed == 0:  # nothing needed: stop each search after its first vertex
             need = np.ones(n, dtype=np.bool_)
             n_needed = 1
+        need = need[mesh.order]
     q = np.einsum("sk,skd->sd", bary, p[tri])
     # bounded searches run a few edges farther, for the late updates that come from there
     slack = 4.0 * mesh.mean_edge
@@ -420,7 +427,7 @@ def march(mesh: MarchingMesh, points, source_tri_vertices, source_barycentrics, 
     _nb.set_parallel_chunksize(1)   # hand sources out one at a time: balanced when CPUs are shared
     try:
         _march_many(*mesh.tables(), start_ptr, sv.astype(np.int64), sd, need, n_needed, float(limit), slack,
-                    width, n_buckets, p, tri, q, direct_ptr, direct[:, 1].astype(np.int64),
+                    width, n_buckets, mesh.rank, p, tri, q, direct_ptr, direct[:, 1].astype(np.int64),
                     direct[:, 2].astype(np.float64), out_v, out_s, settled)
     finally:
         _nb.set_parallel_chunksize(old_chunk)

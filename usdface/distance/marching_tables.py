@@ -26,7 +26,7 @@ if HAVE_NUMBA:
 else:  # pragma: no cover - numba is a dependency
     prange = range
 
-__all__ = ["HAVE_NUMBA", "MarchingMesh", "marching_mesh_bytes", "search_bytes", "triangle_neighbours"]
+__all__ = ["HAVE_NUMBA", "MarchingMesh", "marching_mesh_bytes", "morton_order", "search_bytes", "triangle_neighbours"]
 
 #: columns of :attr:`MarchingMesh.wedge_geom` and :attr:`MarchingMesh.split_geom`
 WEDGE_COLUMNS = ("la", "lb", "bx", "by", "ax", "ay", "inv_la", "inv_lb")
@@ -37,6 +37,10 @@ MAX_UNFOLD = 12
 
 class MarchingMesh:
     """The update tables of one triangle mesh, built once and shared by every search.
+
+    The tables number the vertices in their own order, along a space-filling (Morton) curve, so
+    that the vertices a search visits one after the other lie close in memory whatever order the
+    mesh file has (a shuffled vertex order made the search 2.6x slower on the 560k-vertex face).
 
     Parameters
     ----------
@@ -49,18 +53,24 @@ class MarchingMesh:
     Attributes
     ----------
     n_points : int
+    order : ndarray, shape (N,), int64
+        The mesh's vertex at each position of the tables' order.
+    rank : ndarray, shape (N,), int64
+        The position of each of the mesh's vertices in the tables' order (``rank[order] = 0..N-1``).
+    points : ndarray, shape (N, 3), float64
+        The vertices in the tables' order.
     ptr : ndarray, shape (N + 1,), int64
-        Wedges of vertex v: rows ``ptr[v]:ptr[v + 1]`` (triangle order).
+        Wedges of vertex v (tables' order): rows ``ptr[v]:ptr[v + 1]``, in triangle order.
     wedge_vertices : ndarray, shape (W, 2), int32
-        For each corner v of each triangle (v, a, b): a and b.
+        For each corner v of each triangle (v, a, b): a and b (tables' order).
     wedge_geom : ndarray, shape (W, 8), float32
         :data:`WEDGE_COLUMNS`: ``|va|``, ``|vb|``; b at (bx, by) in the frame v = origin, a on
         +x (by <= 0); a at (ax, ay) in the frame v = origin, b on +x (ay <= 0); ``1 / |va|``,
         ``1 / |vb|`` (0 for a zero-length side). Mesh units.
     sptr : ndarray, shape (N + 1,), int64
-        Split rows targeting vertex b: ``sptr[b]:sptr[b + 1]``.
+        Split rows targeting vertex b (tables' order): ``sptr[b]:sptr[b + 1]``.
     split_vertices : ndarray, shape (K, 2), int32
-        Each virtual triangle (u, w) seen from its target b.
+        Each virtual triangle (u, w) seen from its target b (tables' order).
     split_geom : ndarray, shape (K, 6), float32
         :data:`SPLIT_COLUMNS`: ``|uw|``, ``|ub|``, ``|wb|`` (unfolded), b at (bx, by) in the frame
         u = origin, w on +x (by <= 0), ``1 / |uw|``.
@@ -74,10 +84,14 @@ class MarchingMesh:
         if not HAVE_NUMBA:  # pragma: no cover
             raise InputError("backend='fmm' needs numba (pip install numba)")
         p = np.ascontiguousarray(points, dtype=np.float64)
-        t = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
         n = p.shape[0]
         self.n_points = n
         notice_compiling("the geodesic search kernels", _wedge_tables, _split_tables, _vertex_triangles)
+        self.order = morton_order(p)
+        self.rank = np.empty(n, dtype=np.int64)
+        self.rank[self.order] = np.arange(n)
+        self.points = p = p[self.order]
+        t = self.rank[np.asarray(triangles, dtype=np.int64).reshape(-1, 3)]
         self.ptr, self.wedge_vertices, self.wedge_geom = _wedge_tables(p, t, n)
         vt_ptr, vt = _vertex_triangles(t, n)
         nb = _triangle_neighbours(t, vt_ptr, vt)
@@ -107,13 +121,38 @@ def marching_mesh_bytes(n_points: int, n_triangles: int) -> int:
     splits = 2 * n_triangles * (2 * 4 + 6 * 4)    # at most one obtuse corner per triangle, 2 splits
     # corner slots, triangles around vertices, neighbours (int64, 3 per triangle), split slots
     build = n_triangles * (3 * 3 * 8 + 2 * (8 + 2 * 4 + 6 * 4)) + 2 * 8 * (n_points + 1)
-    return 2 * 8 * (n_points + 1) + wedges + splits + build
+    reorder = n_points * (8 + 8 + 24) + n_triangles * 3 * 8 * 2    # order, rank, points, renumbered triangles
+    return 2 * 8 * (n_points + 1) + wedges + splits + build + reorder
 
 
 def search_bytes(n_points: int) -> int:
     """Scratch memory of one running search (distance, settled flag, its row of the result), bytes;
     the bucket queue holds only the front (small)."""
     return n_points * (8 + 1 + 8)
+
+
+def morton_order(points) -> np.ndarray:
+    """(N,) int64 vertex order along a Morton (Z-order) curve through the bounding box: points
+    close in the order are close in space. 21 bits per axis; ties keep the input order."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo = p.min(axis=0)
+    span = float((p.max(axis=0) - lo).max())
+    q = ((p - lo) * ((2 ** 21 - 1) / span if span > 0 else 0.0)).astype(np.uint64)
+    code = np.zeros(p.shape[0], dtype=np.uint64)
+    for axis in range(3):
+        code |= _spread_bits(q[:, axis]) << np.uint64(axis)
+    return np.argsort(code, kind="stable").astype(np.int64)
+
+
+def _spread_bits(x: np.ndarray) -> np.ndarray:
+    """Bits b0 b1 b2 ... of 21-bit integers moved to positions 0, 3, 6, ... (uint64)."""
+    x = x & np.uint64(0x1FFFFF)
+    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
+    return x
 
 
 def triangle_neighbours(triangles) -> np.ndarray:
