@@ -13,7 +13,7 @@ from scipy.spatial import Delaunay
 
 from usdface.distance import DistanceWarning, GeodesicSolver, geodesic_distances
 from usdface.distance import graph as G
-from usdface.distance.marching import MarchingMesh, march, queue_buckets, triangle_neighbours
+from usdface.distance.marching import MarchingMesh, march, queue_buckets
 
 
 def planar_mesh(n=600, seed=0):
@@ -112,8 +112,6 @@ def test_split_tables_are_true_unfoldings():
     np.testing.assert_allclose(g[:, 5], 1 / g[:, 0], rtol=1e-6)
     # each split corner: b's two virtual triangles share w; (b, u) and (b, w) within 90 degrees
     assert (np.einsum("ij,ij->i", pts[u] - pts[b], pts[w] - pts[b]) >= -1e-9).all()
-    nb = triangle_neighbours(tris)
-    assert (nb >= -1).all() and (nb < len(tris)).all()
 
 
 def test_against_exact_geodesics_on_sample_faces(shared_data):
@@ -392,22 +390,6 @@ def test_wedge_tables_equal_triangle_geometry(shared_data):
             la, bx, by = _frame(p, v, a, b)
             lb, ax, ay = _frame(p, v, b, a)
             np.testing.assert_allclose(g, [la, lb, bx, by, ax, ay, 1 / la, 1 / lb], rtol=2e-6, atol=1e-6)
-
-
-def test_triangle_neighbours_equal_shared_edges():
-    """Across each edge: the other triangle holding it, -1 on the border; three triangles on one
-    edge link in a cycle by index."""
-    pts, tris = planar_mesh(60, seed=8)
-    extra = np.array([[tris[0, 0], tris[0, 1], len(pts)]])           # a fin on edge (t0[0], t0[1])
-    t = np.concatenate([tris, extra])
-    nb = triangle_neighbours(t)
-    for f in range(len(t)):
-        for k in range(3):
-            e = {int(t[f, k]), int(t[f, (k + 1) % 3])}
-            others = sorted(g for g in range(len(t)) if g != f and e <= set(t[g].tolist()))
-            want = -1 if not others else next((g for g in others if g > f), others[0])
-            assert nb[f, k] == want, (f, k, others)
-    assert (nb == -1).any() and (nb == len(tris)).any()         # a border; the fin is linked in
 
 
 def test_kernel_equals_slow_reference_on_the_makehuman_face(shared_data):

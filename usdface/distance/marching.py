@@ -58,8 +58,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..numba_cache import njit, notice_compiling
-from .marching_tables import (HAVE_NUMBA, MarchingMesh, marching_mesh_bytes, search_bytes,
-                              triangle_neighbours)
+from .marching_tables import HAVE_NUMBA, MarchingMesh, marching_mesh_bytes, search_bytes
 
 if HAVE_NUMBA:
     import numba as _nb
@@ -68,7 +67,7 @@ else:  # pragma: no cover - numba is a dependency
     prange = range
 
 __all__ = ["BUCKETS_PER_EDGE", "HAVE_NUMBA", "MarchingMesh", "march", "marching_mesh_bytes", "queue_buckets",
-           "search_bytes", "triangle_neighbours"]
+           "search_bytes"]
 
 #: a settled vertex is reopened when a later update is shorter by more than this factor (well above
 #: the ~1e-7 relative rounding of float32 geometry, so rounding never reopens anything)

@@ -10,8 +10,10 @@ Two tables, both in compressed rows over the vertices:
   edges.
 
 Every pass is a numba kernel over the triangles (no sort: the rows are filled by counting), so
-the tables of a 560k-vertex face build in a fraction of a second; the geometry is computed in
-float64 and stored in float32 (it halves the memory the searches stream through).
+the tables of a 560k-vertex face build in about half a second; the geometry is computed in
+float64 and stored in float32 (it halves the memory the searches stream through). The passes run
+on one thread: they are bound by memory, and parallel ones ran twice as long when other processes
+shared the CPUs (1.3 s against 0.7 s at a load average of 6).
 """
 from __future__ import annotations
 
@@ -21,12 +23,7 @@ from ..errors import InputError
 from ..numba_cache import AVAILABLE as HAVE_NUMBA
 from ..numba_cache import njit, notice_compiling
 
-if HAVE_NUMBA:
-    from numba import prange
-else:  # pragma: no cover - numba is a dependency
-    prange = range
-
-__all__ = ["HAVE_NUMBA", "MarchingMesh", "marching_mesh_bytes", "morton_order", "search_bytes", "triangle_neighbours"]
+__all__ = ["HAVE_NUMBA", "MarchingMesh", "marching_mesh_bytes", "morton_order", "search_bytes"]
 
 #: columns of :attr:`MarchingMesh.wedge_geom` and :attr:`MarchingMesh.split_geom`
 WEDGE_COLUMNS = ("la", "lb", "bx", "by", "ax", "ay", "inv_la", "inv_lb")
@@ -86,18 +83,15 @@ class MarchingMesh:
         p = np.ascontiguousarray(points, dtype=np.float64)
         n = p.shape[0]
         self.n_points = n
-        notice_compiling("the geodesic search kernels", _wedge_tables, _split_tables, _vertex_triangles)
+        notice_compiling("the geodesic search kernels", _wedge_tables, _split_tables, _rows_by_target)
         self.order = morton_order(p)
         self.rank = np.empty(n, dtype=np.int64)
         self.rank[self.order] = np.arange(n)
         self.points = p = p[self.order]
         t = self.rank[np.asarray(triangles, dtype=np.int64).reshape(-1, 3)]
         self.ptr, self.wedge_vertices, self.wedge_geom = _wedge_tables(p, t, n)
-        vt_ptr, vt = _vertex_triangles(t, n)
-        nb = _triangle_neighbours(t, vt_ptr, vt)
         counts = np.zeros(2, dtype=np.int64)
-        slot_b, slot_v, slot_g = _split_tables(p, t, nb, int(max_unfold), counts)
-        del nb, vt_ptr, vt
+        slot_b, slot_v, slot_g = _split_tables(p, t, self.ptr, self.wedge_vertices, int(max_unfold), counts)
         self.sptr, self.split_vertices, self.split_geom = _rows_by_target(slot_b, slot_v, slot_g, n)
         self.n_obtuse, self.n_split = int(counts[0]), int(counts[1])
 
@@ -119,8 +113,8 @@ def marching_mesh_bytes(n_points: int, n_triangles: int) -> int:
     the temporaries of building it."""
     wedges = 3 * n_triangles * (2 * 4 + 8 * 4)
     splits = 2 * n_triangles * (2 * 4 + 6 * 4)    # at most one obtuse corner per triangle, 2 splits
-    # corner slots, triangles around vertices, neighbours (int64, 3 per triangle), split slots
-    build = n_triangles * (3 * 3 * 8 + 2 * (8 + 2 * 4 + 6 * 4)) + 2 * 8 * (n_points + 1)
+    # corner slots (int64, 3 per triangle), split slots
+    build = n_triangles * (3 * 8 + 2 * (8 + 2 * 4 + 6 * 4)) + 8 * (n_points + 1)
     reorder = n_points * (8 + 8 + 24) + n_triangles * 3 * 8 * 2    # order, rank, points, renumbered triangles
     return 2 * 8 * (n_points + 1) + wedges + splits + build + reorder
 
@@ -155,19 +149,7 @@ def _spread_bits(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def triangle_neighbours(triangles) -> np.ndarray:
-    """(T, 3) triangle across edge k = (t[f, k], t[f, k + 1]) of each triangle, -1 on a border.
-
-    A non-manifold edge (three or more triangles) links its triangles in a cycle (each to the
-    next higher index, the highest to the lowest).
-    """
-    t = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
-    n = int(t.max()) + 1 if t.size else 0
-    vt_ptr, vt = _vertex_triangles(t, n)
-    return _triangle_neighbours(t, vt_ptr, vt)
-
-
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True)
 def _wedge_tables(p, t, n):
     """The wedge rows (see :class:`MarchingMesh`): each vertex's corners in triangle order.
 
@@ -181,7 +163,7 @@ def _wedge_tables(p, t, n):
     """
     nt = t.shape[0]
     # rows by counting (a stable counting sort of the corners by vertex), then the geometry of
-    # every corner in parallel
+    # every corner
     ptr = np.zeros(n + 1, np.int64)
     slot = np.full(3 * nt, -1, np.int64)
     for f in range(nt):
@@ -198,7 +180,7 @@ def _wedge_tables(p, t, n):
                 fill[t[f, c]] += 1
     wv = np.empty((ptr[n], 2), np.int32)
     wg = np.empty((ptr[n], 8), np.float32)
-    for f in prange(nt):
+    for f in range(nt):
         for c in range(3):
             k = slot[3 * f + c]
             if k < 0:
@@ -269,63 +251,18 @@ def _rows_by_target(slot_b, slot_v, slot_g, n):
     return sptr, sv, sg
 
 
-@njit(cache=True, nogil=True)
-def _vertex_triangles(t, n):
-    """Triangles around each vertex (CSR: ``vt[vt_ptr[v]:vt_ptr[v + 1]]``, increasing), each
-    triangle listed once per distinct vertex."""
-    cnt = np.zeros(n + 1, np.int64)
-    for f in range(t.shape[0]):
-        for c in range(3):
-            v = t[f, c]
-            if c == 0 or (v != t[f, 0] and (c == 1 or v != t[f, 1])):
-                cnt[v + 1] += 1
-    for v in range(n):
-        cnt[v + 1] += cnt[v]
-    vt = np.empty(cnt[n], np.int64)
-    fill = cnt[:-1].copy()
-    for f in range(t.shape[0]):
-        for c in range(3):
-            v = t[f, c]
-            if c == 0 or (v != t[f, 0] and (c == 1 or v != t[f, 1])):
-                vt[fill[v]] = f
-                fill[v] += 1
-    return cnt, vt
-
-
-@njit(cache=True, nogil=True)
-def _has_edge(t, g, x0, x1):
-    """Whether triangle g has the edge {x0, x1} (two of its corners; x0 == x1 needs the
-    vertex twice)."""
-    n0 = 0
-    n1 = 0
-    for c in range(3):
-        n0 += t[g, c] == x0
-        n1 += t[g, c] == x1
-    return n0 >= 2 if x0 == x1 else (n0 >= 1 and n1 >= 1)
-
-
-@njit(cache=True, parallel=True)
-def _triangle_neighbours(t, vt_ptr, vt):
-    """(T, 3) int64: the triangle across each edge (see :func:`triangle_neighbours`)."""
-    nt = t.shape[0]
-    out = np.full((nt, 3), -1, np.int64)
-    for f in prange(nt):
-        for k in range(3):
-            x0 = t[f, k]
-            x1 = t[f, (k + 1) % 3]
-            nxt = -1        # smallest sharing triangle above f, else the smallest overall
-            low = -1
-            for j in range(vt_ptr[x0], vt_ptr[x0 + 1]):
-                g = vt[j]
-                if g == f or not _has_edge(t, g, x0, x1):
-                    continue
-                if low < 0:
-                    low = g
-                if g > f:
-                    nxt = g
-                    break
-            out[f, k] = nxt if nxt >= 0 else low
-    return out
+@njit(cache=True, nogil=True, inline="always")
+def _across(ptr, wv, cu, ca, x):
+    """The third vertex of a triangle on edge (cu, ca) other than x (the first in cu's wedges:
+    the triangle across the edge from x on a manifold mesh), -1 on a border."""
+    for k in range(ptr[cu], ptr[cu + 1]):
+        a = wv[k, 0]
+        b = wv[k, 1]
+        if a == ca and b != x:
+            return b
+        if b == ca and a != x:
+            return a
+    return -1
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -353,30 +290,16 @@ def _emit(slot_b, slot_v, slot_g, k, b, u, w, ux, uy, wx, wy):
 
 
 @njit(cache=True, nogil=True)
-def _unfold(p, t, nb, f, b, u, a, ux, ax, ay, max_unfold):
-    """Unfold the triangles across edge (u, a) of triangle f into the plane of its obtuse
-    corner b (b at the origin, u at (ux, 0), a at (ax, ay)) until a vertex w falls within 90
-    degrees of both b -> u and b -> a. Returns (w, wx, wy), w = -1 when none is found."""
+def _unfold(p, ptr, wv, b, u, a, ux, ax, ay, max_unfold):
+    """Unfold the triangles across edge (u, a) of the obtuse corner b into b's plane (b at the
+    origin, u at (ux, 0), a at (ax, ay)) until a vertex w falls within 90 degrees of both b -> u
+    and b -> a. Returns (w, wx, wy), w = -1 when none is found."""
     cu, ca = u, a                    # the edge crossed next: cu at (px, py), ca at (qx, qy)
     px, py, qx, qy = ux, 0.0, ax, ay
-    xx, xy = 0.0, 0.0                # the vertex behind that edge (starts at b)
-    g = np.int64(f)                  # (a prange index is unsigned: keep g signed)
+    behind = b                       # the vertex behind that edge, at (xx, yy)
+    xx, xy = 0.0, 0.0
     for _ in range(max_unfold):
-        ke = -1
-        for kk in range(3):
-            x0 = t[g, kk]
-            x1 = t[g, (kk + 1) % 3]
-            if (x0 == cu and x1 == ca) or (x0 == ca and x1 == cu):
-                ke = kk
-        if ke < 0:
-            break
-        h = nb[g, ke]
-        if h < 0:
-            break
-        w = -1
-        for kk in range(3):
-            if t[h, kk] != cu and t[h, kk] != ca:
-                w = t[h, kk]
+        w = _across(ptr, wv, cu, ca, behind)
         if w < 0 or w == b:
             break
         luw2 = 0.0
@@ -393,7 +316,7 @@ def _unfold(p, t, nb, f, b, u, a, ux, ax, ay, max_unfold):
         ey /= L
         x = (luw2 - law2 + L * L) / (2.0 * L)
         y = np.sqrt(max(0.0, luw2 - x * x))
-        nx, ny = -ey, ex             # w goes on the side of the edge away from X
+        nx, ny = -ey, ex             # w goes on the side of the edge away from the vertex behind
         if (xx - px) * nx + (xy - py) * ny > 0.0:
             nx, ny = -nx, -ny
         cx = px + x * ex + y * nx
@@ -403,19 +326,18 @@ def _unfold(p, t, nb, f, b, u, a, ux, ax, ay, max_unfold):
         if in_u and in_a:
             return w, cx, cy
         if not in_u:        # past the section on a's side: cross edge (cu, w) next
-            xx, xy = qx, qy
+            behind, xx, xy = ca, qx, qy
             ca = w
             qx, qy = cx, cy
         else:               # on u's side: cross edge (w, ca) next
-            xx, xy = px, py
+            behind, xx, xy = cu, px, py
             cu = w
             px, py = cx, cy
-        g = h
     return -1, 0.0, 0.0
 
 
-@njit(cache=True, parallel=True)
-def _split_tables(p, t, nb, max_unfold, counts):
+@njit(cache=True, nogil=True)
+def _split_tables(p, t, ptr, wv, max_unfold, counts):
     """Two slots per triangle (a triangle has at most one obtuse corner): target b (-1 for an
     empty slot), (u, w) and the geometry (:data:`SPLIT_COLUMNS`). ``counts`` receives
     (obtuse corners, split corners)."""
@@ -425,7 +347,7 @@ def _split_tables(p, t, nb, max_unfold, counts):
     slot_g = np.empty((2 * nt, 6), np.float32)
     obtuse = np.zeros(nt, np.int64)
     split = np.zeros(nt, np.int64)
-    for f in prange(nt):
+    for f in range(nt):
         for c in range(3):
             b = t[f, c]
             u = t[f, (c + 1) % 3]
@@ -449,7 +371,7 @@ def _split_tables(p, t, nb, max_unfold, counts):
             # b at the origin, u on the x axis, a at angle beta > 90 degrees
             ax = la * cb
             ay = la * np.sqrt(max(0.0, 1.0 - cb * cb))
-            w, wx, wy = _unfold(p, t, nb, f, b, u, a, lu, ax, ay, max_unfold)
+            w, wx, wy = _unfold(p, ptr, wv, b, u, a, lu, ax, ay, max_unfold)
             if w < 0 or w == u or w == a:
                 continue
             split[f] = 1
