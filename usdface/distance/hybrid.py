@@ -22,20 +22,25 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..errors import InputError, OptionError
 from .euclidean import check_matrix_memory, pairwise_euclidean, source_points, validate_sources
 from .geodesic import DistanceReport, GeodesicSolver
+
+if TYPE_CHECKING:  # annotations only: imported where used
+    import scipy.spatial
 
 __all__ = ["HybridResult", "hybrid_distances", "hybrid_weights", "region_mask"]
 
 PAPER_THRESHOLD = 0.6
 
 
-def _tree(points) -> cKDTree:
+def _tree(points) -> scipy.spatial.cKDTree:
+    from scipy.spatial import cKDTree  # here, not at import: only the hybrid method needs it
+
     # sliding-midpoint tree: median splits degrade badly on the lattice-like vertex sets of
     # refined meshes (measured 2.9 s vs 0.5 s for 185k queries at 328k vertices)
     return cKDTree(points, balanced_tree=False, compact_nodes=False)
