@@ -449,3 +449,14 @@ def test_vertex_order_of_the_mesh_does_not_matter(shared_data):
     b = GeodesicSolver(pts[perm], inv[tris], backend="fmm").solve(inv[tri], bary)
     np.testing.assert_array_equal(b.vertex[inv], a.vertex)
     np.testing.assert_array_equal(b.sources, a.sources)
+
+
+def test_vertex_major_matrix_in_the_asked_type():
+    """The (N, S) matrix comes vertex-major (C-contiguous, as the analysis layer stores it) in the
+    asked type: float32 is the float64 result rounded."""
+    pts, tris = planar_mesh(150, seed=10)
+    tri, bary = sources_in(tris, 4, seed=11)
+    d64 = GeodesicSolver(pts, tris, backend="fmm").distances(tri, bary)
+    d32 = GeodesicSolver(pts, tris, backend="fmm", dtype=np.float32).distances(tri, bary)
+    assert d64.flags.c_contiguous and d32.flags.c_contiguous and d32.dtype == np.float32
+    np.testing.assert_array_equal(d32, d64.astype(np.float32))

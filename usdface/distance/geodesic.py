@@ -329,6 +329,7 @@ class GeodesicSolver:
                 parts["edge graph"] = 2 * self.edges.shape[0] * 12 + 8 * (n + 1)
             parts["search scratch"] = threads * n * 9
         elif self.backend == "fmm":
+            parts["source rows"] = matrix               # a row per source, then the vertex-major matrix
             if self._marching is None:
                 parts["marching tables"] = marching_mesh_bytes(n, t)
             parts["search scratch"] = threads * search_bytes(n)

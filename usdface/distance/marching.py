@@ -356,6 +356,20 @@ def _march_many(ptr, wv, wg, sptr, sv, sg, start_ptr, start_v, start_d, needed, 
         out_s[s, s] = 0.0
 
 
+@njit(cache=True, parallel=True)
+def _vertex_major(rows, out):
+    """``out[i, s] = rows[s, i]``: (S, N) -> (N, S), by blocks of vertices whose rows of ``out``
+    stay in cache."""
+    n_src, n = rows.shape
+    block = 512
+    for k in prange((n + block - 1) // block):
+        i0 = k * block
+        i1 = min(n, i0 + block)
+        for s in range(n_src):
+            for i in range(i0, i1):
+                out[i, s] = rows[s, i]
+
+
 def march(mesh: MarchingMesh, points, source_tri_vertices, source_barycentrics, *, needed=None,
           limit: float = np.inf, dtype=np.float64):
     """Geodesic distances from surface-point sources by fast marching (see the module docstring).
@@ -379,8 +393,8 @@ def march(mesh: MarchingMesh, points, source_tri_vertices, source_barycentrics, 
 
     Returns
     -------
-    vertex : ndarray, shape (N, S)
-        Mesh units; Fortran-ordered view of an (S, N) array.
+    vertex : ndarray, shape (N, S), ``dtype``, C-contiguous
+        Mesh units (vertex-major, as the analysis layer stores it).
     sources : ndarray, shape (S, S), float64
         ``sources[i, j]``: source i's distance field at source point j (close to, not exactly,
         symmetric).
@@ -421,7 +435,7 @@ def march(mesh: MarchingMesh, points, source_tri_vertices, source_barycentrics, 
     out_v = np.empty((s, n), dtype=dtype)
     out_s = np.empty((s, s), dtype=np.float64)
     settled = np.zeros(s, dtype=np.int64)
-    notice_compiling("the geodesic search kernels", _march_many)
+    notice_compiling("the geodesic search kernels", _march_many, _vertex_major)
     old_chunk = _nb.get_parallel_chunksize()
     _nb.set_parallel_chunksize(1)   # hand sources out one at a time: balanced when CPUs are shared
     try:
@@ -430,4 +444,6 @@ def march(mesh: MarchingMesh, points, source_tri_vertices, source_barycentrics, 
                     direct[:, 2].astype(np.float64), out_v, out_s, settled)
     finally:
         _nb.set_parallel_chunksize(old_chunk)
-    return out_v.T, out_s, settled
+    vertex = np.empty((n, s), dtype=dtype)
+    _vertex_major(out_v, vertex)
+    return vertex, out_s, settled

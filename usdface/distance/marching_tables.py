@@ -120,9 +120,9 @@ def marching_mesh_bytes(n_points: int, n_triangles: int) -> int:
 
 
 def search_bytes(n_points: int) -> int:
-    """Scratch memory of one running search (distance, settled flag, its row of the result), bytes;
-    the bucket queue holds only the front (small)."""
-    return n_points * (8 + 1 + 8)
+    """Scratch memory of one running search (distance and settled flag per vertex), bytes; the
+    bucket queue holds only the front (small)."""
+    return n_points * (8 + 1)
 
 
 def morton_order(points) -> np.ndarray:
