@@ -37,6 +37,11 @@ phases), the ratios to the baseline of the same run, and fmm's error against exa
 from one mean edge to 3 kernel widths). The load average is printed before and after each size:
 other processes share the CPUs, so read the ratios.
 
+``--usdface-root DIR`` times another checkout's `usdface distances` (e.g. an older commit
+exported with ``git archive``) on the same layers; when its output has no timing line, the
+set-up and search times come from a probe process that runs that checkout's GeodesicSolver on
+the same sources (``--probe`` adds the probe for this checkout too).
+
 Warm runs: the first `usdface distances` run of a checkout compiles the numba kernels and caches
 them on disk (``first run`` below); every timed run loads them from that cache.
 """
@@ -68,7 +73,8 @@ INFO = re.compile(r"geodesic (\w+): (\d+) vertices x (\d+) sources in ([\d.]+) s
 
 def usdface(*args) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    r = subprocess.run([sys.executable, "-m", "usdface", *map(str, args)], capture_output=True, text=True, env=env)
+    r = subprocess.run([sys.executable, "-m", "usdface", *map(str, args)], capture_output=True, text=True, env=env,
+                       cwd=tempfile.gettempdir())
     if r.returncode:
         raise SystemExit(f"usdface {' '.join(map(str, args))} failed ({r.returncode}):\n{r.stderr}")
     return r
@@ -77,7 +83,8 @@ def usdface(*args) -> subprocess.CompletedProcess:
 def timed(cmd, env=None) -> tuple[float, subprocess.CompletedProcess]:
     """Wall time of one process, start to exit."""
     t0 = time.perf_counter()
-    r = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    # from a neutral folder: the current one would come first on sys.path (a checkout's usdface)
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
     seconds = time.perf_counter() - t0
     if r.returncode:
         raise SystemExit(f"{' '.join(map(str, cmd))} failed ({r.returncode}):\n{r.stderr}")
@@ -112,12 +119,42 @@ def distances_cmd(mesh, binding, backend, out) -> list:
 
 def run_cli(cmd, env) -> dict:
     seconds, r = timed(cmd, env)
-    m = INFO.search(r.stderr)
-    if m is None:
-        raise SystemExit(f"no timing line in the output of {' '.join(map(str, cmd))}:\n{r.stderr}")
     summary = json.loads(r.stdout)
-    return {"wall": seconds, "setup": float(m.group(5)), "search": float(m.group(6)), "threads": int(m.group(8)),
-            "sources": int(m.group(3)), "compute": summary["parameters"]["computeSeconds"]}
+    out = {"wall": seconds, "compute": summary["parameters"]["computeSeconds"],
+           "sources": summary["markers"] + summary["constraintCentres"]}
+    m = INFO.search(r.stderr)
+    if m is not None:        # a checkout that logs its set-up and search times
+        out.update(setup=float(m.group(5)), search=float(m.group(6)), threads=int(m.group(8)))
+    return out
+
+
+#: run with a checkout's PYTHONPATH: its fmm solver's set-up and search times on the CLI's sources
+PROBE = """
+import json, sys, time
+import numpy as np
+from usdface.usd.analysis_layer import read_distance_matrix
+from usdface.usd.layers import open_stage
+from usdface.usd.mesh_layer import read_binding, read_mesh_layer
+mesh, _ = read_mesh_layer(sys.argv[1])
+b = read_binding(open_stage(sys.argv[2], what="binding"))
+cons = read_distance_matrix(sys.argv[3]).constraint_vertices
+tri = np.concatenate([b.triangle_vertices, np.repeat(cons[:, None], 3, axis=1)])
+bary = np.concatenate([b.barycentrics, np.tile([1.0, 0.0, 0.0], (cons.size, 1))])
+from usdface.distance import GeodesicSolver
+import numba
+t0 = time.perf_counter()
+solver = GeodesicSolver.from_mesh(mesh, backend="fmm")
+solver.marching
+t1 = time.perf_counter()
+solver.solve(tri, bary)
+t2 = time.perf_counter()
+print(json.dumps({"setup": t1 - t0, "search": t2 - t1, "threads": min(numba.get_num_threads(), len(tri))}))
+"""
+
+
+def run_probe(mesh, binding, analysis, env) -> dict:
+    _, r = timed([sys.executable, "-c", PROBE, mesh, binding, analysis], env)
+    return json.loads(r.stdout.strip().splitlines()[-1])
 
 
 def source_vertices(binding: Path, analysis: Path) -> np.ndarray:
@@ -155,7 +192,7 @@ def median(rows, key) -> float:
     return float(np.median([r[key] for r in rows]))
 
 
-def bench_size(work, n, capture, repeat, env, coarse) -> dict:
+def bench_size(work, n, capture, repeat, env, coarse, probe) -> dict:
     t0 = time.perf_counter()
     mesh, binding, nv = prepare(work, n, capture)
     print(f"\n== n = {n}: {nv} vertices (layers prepared with the CLI in {time.perf_counter() - t0:.1f} s); "
@@ -169,9 +206,15 @@ def bench_size(work, n, capture, repeat, env, coarse) -> dict:
     assert first["fmm"]["sources"] == s == first["graph"]["sources"], (first, s)
     base_cmd = [sys.executable, str(BASELINE), mesh, sources, work / f"D_n{n}.npy"]
     rows = {"fmm": [], "graph": [], "scipy": []}
+    probe = probe or "setup" not in first["fmm"]
     for _ in range(repeat):
         rows["fmm"].append(run_cli(distances_cmd(mesh, binding, "fmm", out["fmm"]), env))
+        if probe:           # set-up and search times from a probe process instead of the log line
+            rows["fmm"][-1].update(run_probe(mesh, binding, out["fmm"], env))
         rows["graph"].append(run_cli(distances_cmd(mesh, binding, "graph", out["graph"]), env))
+        rows["graph"][-1].setdefault("setup", float("nan"))
+        rows["graph"][-1].setdefault("search", float("nan"))
+        rows["graph"][-1].setdefault("threads", 0)
         seconds, r = timed(base_cmd, env)
         rows["scipy"].append({"wall": seconds, **json.loads(r.stdout)})
     d = np.load(work / f"D_n{n}.npy", mmap_mode="r")
@@ -190,7 +233,7 @@ def bench_size(work, n, capture, repeat, env, coarse) -> dict:
         w, su, se = median(rows[b], "wall"), median(rows[b], "setup"), median(rows[b], "search")
         res.update({b: w, b + "_setup": su, b + "_src": se / s})
         print(f"   {'usdface distances --backend ' + b:28s} {w:8.2f} {w / sc:7.2f} {su:9.2f} {se:9.2f} "
-              f"{se / s:9.4f} {rows[b][0]['threads']:7d}")
+              f"{se / s:9.4f} {rows[b][0]['threads']:7d}" + ("  (set-up, search: probe)" if b == "fmm" and probe else ""))
     print(f"   per source, fmm / scipy: {res['fmm_src'] / sc_src:.2f}; fmm set-up {res['fmm_setup']:.2f} s "
           f"(scipy's edge graph {res['scipy_setup']:.2f} s)")
     print("   baseline phases (median s): " + ", ".join(
@@ -208,6 +251,9 @@ def main(argv=None):
     ap.add_argument("--middle", type=int, default=6, help="refinement of the middle face (6 -> 71k vertices)")
     ap.add_argument("--repeat", type=int, default=3, help="interleaved timed repeats (medians reported)")
     ap.add_argument("--workdir", type=Path, default=None, help="keep the layers here (default: a temporary folder)")
+    ap.add_argument("--usdface-root", type=Path, default=REPO,
+                    help="the checkout whose `usdface distances` is timed (default: this one)")
+    ap.add_argument("--probe", action="store_true", help="set-up and search times from a probe process")
     args = ap.parse_args(argv)
 
     import numba
@@ -217,7 +263,9 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         work = args.workdir or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+        root = args.usdface_root.resolve()
+        env = dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+        print(f"timing the usdface of {root}")
         capture = work / "capture.usdc"
         usdface("import-capture", TAKE, "-o", capture, "-q")
         from usdface.distance import graph as G
@@ -228,7 +276,7 @@ def main(argv=None):
         coarse_edge = float(np.linalg.norm(face.points[e[:, 0]] - face.points[e[:, 1]], axis=1).mean())
         results, coarse = [], None
         for n in dict.fromkeys([1, args.middle, args.n]):
-            res, binding = bench_size(work, n, capture, args.repeat, env, coarse)
+            res, binding = bench_size(work, n, capture, args.repeat, env, coarse, args.probe)
             results.append(res)
             if n == 1:
                 from usdface.usd.layers import open_stage
