@@ -169,6 +169,24 @@ class HybridResult:
     seconds: dict = field(default_factory=dict)
 
 
+def _blend(vertex, g, geo_v, wcol) -> None:
+    """``vertex = e + wcol (g - e)`` where ``geo_v``, else ``e`` (the Euclidean ``vertex``), in place,
+    in the geodesic matrix's memory order: column by column for a source-major one (graph), by
+    blocks of rows for a vertex-major one (fmm). Element for element the same arithmetic either way."""
+    if g.flags.c_contiguous and not g.flags.f_contiguous:
+        block = 8192
+        for i0 in range(0, vertex.shape[0], block):
+            rows = slice(i0, i0 + block)
+            e = vertex[rows]
+            gj = np.where(geo_v[rows, None], g[rows], e)
+            vertex[rows] = e + wcol[rows, None] * (gj - e)
+        return
+    for j in range(vertex.shape[1]):
+        e = vertex[:, j]
+        gj = np.where(geo_v, g[:, j], e)
+        vertex[:, j] = e + wcol * (gj - e)
+
+
 def hybrid_distances(solver: GeodesicSolver, source_tri_vertices, source_barycentrics, region_vertices, *,
                      radius: float, sigma: float, threshold: float = PAPER_THRESHOLD,
                      bounded: bool = True, names=None) -> HybridResult:
@@ -223,14 +241,9 @@ def hybrid_distances(solver: GeodesicSolver, source_tri_vertices, source_barycen
         res = solver.solve(tri, bary, names=names, needed=needed if bounded else None)
         report = res.report
         t3 = time.perf_counter()
-        # blend in place, column by column (the geodesic matrix is (S, N)-major); rows with
-        # w <= threshold keep the Euclidean value (their geodesic entries may be +inf: not searched)
-        wcol = np.where(geo_v, w, 0.0).astype(vertex.dtype)
-        g = res.vertex
-        for j in range(vertex.shape[1]):
-            e = vertex[:, j]
-            gj = np.where(geo_v, g[:, j], e)
-            vertex[:, j] = e + wcol * (gj - e)
+        # blend in place; rows with w <= threshold keep the Euclidean value (their geodesic entries
+        # may be +inf: not searched)
+        _blend(vertex, res.vertex, geo_v, np.where(geo_v, w, 0.0).astype(vertex.dtype))
         srows = np.flatnonzero(geo_s)
         wsr = ws[srows, None]
         sources[srows] = wsr * res.sources[srows] + (1.0 - wsr) * sources[srows]
