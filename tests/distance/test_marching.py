@@ -460,3 +460,22 @@ def test_vertex_major_matrix_in_the_asked_type():
     d32 = GeodesicSolver(pts, tris, backend="fmm", dtype=np.float32).distances(tri, bary)
     assert d64.flags.c_contiguous and d32.flags.c_contiguous and d32.dtype == np.float32
     np.testing.assert_array_equal(d32, d64.astype(np.float32))
+
+
+def test_morton_order_equals_a_slow_reference():
+    """The tables' vertex order: points sorted (stably) by their interleaved 10-bit grid
+    coordinates, which keeps neighbours in space close in the order."""
+    from usdface.distance.marching_tables import morton_order
+    rng = np.random.default_rng(12)
+    pts = np.concatenate([rng.uniform(-3, 7, (2000, 3)), np.zeros((3, 3))])     # ties keep their order
+    lo, span = pts.min(axis=0), np.ptp(pts, axis=0).max()
+    grid = ((pts - lo) * (1023.0 / span)).astype(np.int64)
+
+    def code(g):
+        return sum(((int(g[k]) >> b) & 1) << (3 * b + k) for b in range(10) for k in range(3))
+
+    want = np.argsort([code(g) for g in grid], kind="stable")
+    got = morton_order(pts)
+    np.testing.assert_array_equal(got, want)
+    step = np.linalg.norm(np.diff(pts[got], axis=0), axis=1).mean()
+    assert step < 0.25 * np.linalg.norm(np.diff(pts, axis=0), axis=1).mean()

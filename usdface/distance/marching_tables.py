@@ -127,26 +127,58 @@ def search_bytes(n_points: int) -> int:
 
 def morton_order(points) -> np.ndarray:
     """(N,) int64 vertex order along a Morton (Z-order) curve through the bounding box: points
-    close in the order are close in space. 21 bits per axis; ties keep the input order."""
-    p = np.asarray(points, dtype=np.float64)
+    close in the order are close in space. 10 bits per axis (a 1024^3 grid: cells about one edge
+    long on a 560k-vertex face); points in one cell keep their input order."""
+    p = np.ascontiguousarray(points, dtype=np.float64)
     if p.shape[0] == 0:
         return np.zeros(0, dtype=np.int64)
-    lo = p.min(axis=0)
-    span = float((p.max(axis=0) - lo).max())
-    q = ((p - lo) * ((2 ** 21 - 1) / span if span > 0 else 0.0)).astype(np.uint64)
-    code = np.zeros(p.shape[0], dtype=np.uint64)
-    for axis in range(3):
-        code |= _spread_bits(q[:, axis]) << np.uint64(axis)
-    return np.argsort(code, kind="stable").astype(np.int64)
+    return _morton_order(p)
 
 
-def _spread_bits(x: np.ndarray) -> np.ndarray:
-    """Bits b0 b1 b2 ... of 21-bit integers moved to positions 0, 3, 6, ... (uint64)."""
-    x = x & np.uint64(0x1FFFFF)
-    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
-                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
-        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
+@njit(cache=True, nogil=True, inline="always")
+def _spread_bits(x):
+    """Bits 0-9 of x moved to bits 0, 3, 6, ..., 27."""
+    x = x & 0x3FF
+    x = (x | (x << 16)) & 0x30000FF
+    x = (x | (x << 8)) & 0x300F00F
+    x = (x | (x << 4)) & 0x30C30C3
+    x = (x | (x << 2)) & 0x9249249
     return x
+
+
+@njit(cache=True, nogil=True)
+def _morton_order(p):
+    """Morton codes (30 bits) and a stable radix sort by them (two 15-bit passes)."""
+    n = p.shape[0]
+    lo = p[0].copy()
+    hi = p[0].copy()
+    for i in range(n):
+        for k in range(3):
+            lo[k] = min(lo[k], p[i, k])
+            hi[k] = max(hi[k], p[i, k])
+    span = max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])
+    scale = 1023.0 / span if span > 0 else 0.0
+    code = np.empty(n, np.int64)
+    for i in range(n):
+        c = 0
+        for k in range(3):
+            c |= _spread_bits(np.int64((p[i, k] - lo[k]) * scale)) << k
+        code[i] = c
+    order = np.arange(n)
+    other = np.empty(n, np.int64)
+    count = np.empty((1 << 15) + 1, np.int64)
+    for shift in (0, 15):
+        count[:] = 0
+        for i in range(n):
+            count[((code[order[i]] >> shift) & 0x7FFF) + 1] += 1
+        for j in range(1 << 15):
+            count[j + 1] += count[j]
+        for i in range(n):
+            digit = (code[order[i]] >> shift) & 0x7FFF
+            other[count[digit]] = order[i]
+            count[digit] += 1
+        order, other = other, order
+    return order
 
 
 @njit(cache=True, nogil=True)
