@@ -102,14 +102,14 @@ def queue_buckets(mesh: MarchingMesh) -> tuple[float, int]:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _through_edge(du, da, L, inv_L, px, py, bound):
+def _through_edge(du, da, L, px, py, bound):
     """Distance at (px, py), py <= 0, from the point source fitted to d = du at (0, 0) and
     d = da at (L, 0) (on the y > 0 side) when the straight ray source -> point crosses the edge
     [0, L] x {0} and the distance is below ``bound``; +inf otherwise (no circle intersection,
-    a ray beside the edge, or not shorter than ``bound``). ``inv_L`` = 1 / L: no division."""
+    a ray beside the edge, or not shorter than ``bound``)."""
     if not L > 0.0:
         return np.inf
-    sx = ((du - da) * (du + da) + L * L) * (0.5 * inv_L)
+    sx = ((du - da) * (du + da) + L * L) / (2.0 * L)
     sy2 = (du - sx) * (du + sx)
     # a source on the edge's line gives sy2 = 0 up to the rounding of float32 lengths
     if sy2 < -1e-6 * du * du:
@@ -149,6 +149,18 @@ if HAVE_NUMBA:
                               _ir.Constant(i32, 3), _ir.Constant(i32, 1)])
             return context.get_dummy_value()
         return types.void(array, index), codegen
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _frame(wg, k, side, la, lb):
+    """The target of wedge k's update on ``side`` in the frame of the edge it crosses: b at
+    (bx, by) (side 0), a at (bx, by) |va| / |vb| (side 1)."""
+    bx = np.float64(wg[k, 4])
+    by = np.float64(wg[k, 5])
+    if side == 0:
+        return bx, by
+    r = la / lb if lb > 0.0 else 0.0
+    return bx * r, by * r
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -244,12 +256,11 @@ def _march_one(ptr, wv, wg, sptr, sv, sg, st_v, st_d, needed, n_needed, limit, s
             if ahead >= 0:
                 u = e_v[ahead]
                 k = ptr[u]
-                _prefetch(wg, 8 * k)
-                _prefetch(wg, 8 * k + 16)
-                _prefetch(wg, 8 * k + 32)
-                _prefetch(wv, 2 * k)
-                _prefetch(sv, 2 * sptr[u])
+                _prefetch(wg, 6 * k)                    # 24-byte rows: 6 wedges in 3 lines
+                _prefetch(wg, 6 * k + 16)
+                _prefetch(wg, 6 * k + 32)
                 _prefetch(sg, 6 * sptr[u])
+                _prefetch(sg, 6 * sptr[u] + 12)
                 _prefetch(dist, u)
         e_next[e] = free
         free = e
@@ -268,11 +279,11 @@ def _march_one(ptr, wv, wg, sptr, sv, sg, st_v, st_d, needed, n_needed, limit, s
             w = sv[k, 1]
             if not done[w]:
                 continue
-            c = dist[w] + sg[k, 2]
+            c = dist[w] + sg[k, 3]
             u = sv[k, 0]
             if done[u]:
-                c = min(c, _through_edge(dist[u], dist[w], np.float64(sg[k, 0]), np.float64(sg[k, 5]),
-                                         np.float64(sg[k, 3]), np.float64(sg[k, 4]), min(c, best)))
+                c = min(c, _through_edge(dist[u], dist[w], np.float64(sg[k, 2]), np.float64(sg[k, 4]),
+                                         np.float64(sg[k, 5]), min(c, best)))
             best = min(best, c)
         if best < d:        # shorter through the split: back in the queue with it
             dist[v] = best
@@ -286,15 +297,14 @@ def _march_one(ptr, wv, wg, sptr, sv, sg, st_v, st_d, needed, n_needed, limit, s
             if remaining == 0:
                 limit = min(limit, d + slack)
         # each triangle corner at v updates its two other vertices: b through edge (v, a)
-        # (side 0), a through edge (v, b) (side 1)
+        # (side 0), a through edge (v, b) (side 1: a sits at (bx, by) |va| / |vb| in that frame)
         for k in range(ptr[v], ptr[v + 1]):
+            la = np.float64(wg[k, 2])
+            lb = np.float64(wg[k, 3])
             for side in range(2):
                 tgt = wv[k, 1 - side]
                 oth = wv[k, side]
-                L = np.float64(wg[k, side])
-                inv_L = np.float64(wg[k, 6 + side])
-                px = np.float64(wg[k, 2 + 2 * side])
-                py = np.float64(wg[k, 3 + 2 * side])
+                L = lb if side else la
                 if done[tgt]:
                     if not done[oth]:
                         continue
@@ -302,7 +312,8 @@ def _march_one(ptr, wv, wg, sptr, sv, sg, st_v, st_d, needed, n_needed, limit, s
                     # needed v, farther out: obtuse corners, corners next to a source or a
                     # pseudo-source, or the queue's untidy order). Reopen it if this update is
                     # shorter beyond rounding; it then updates its own neighbours again.
-                    c = _through_edge(d, dist[oth], L, inv_L, px, py, dist[tgt] * _REOPEN)
+                    px, py = _frame(wg, k, side, la, lb)
+                    c = _through_edge(d, dist[oth], L, px, py, dist[tgt] * _REOPEN)
                     if not c < np.inf:
                         continue
                     done[tgt] = 0
@@ -310,9 +321,10 @@ def _march_one(ptr, wv, wg, sptr, sv, sg, st_v, st_d, needed, n_needed, limit, s
                     if n_needed > 0 and needed[tgt]:
                         remaining += 1
                 else:
-                    c = d + np.float64(wg[k, 1 - side])
+                    c = d + (la if side else lb)
                     if done[oth]:
-                        c = min(c, _through_edge(d, dist[oth], L, inv_L, px, py, min(c, dist[tgt])))
+                        px, py = _frame(wg, k, side, la, lb)
+                        c = min(c, _through_edge(d, dist[oth], L, px, py, min(c, dist[tgt])))
                     if not c < dist[tgt]:
                         continue
                 dist[tgt] = c
@@ -349,7 +361,7 @@ def _at_point(p0, p1, p2, d0, d1, d2, q):
             continue
         ey = -yb / nb_
         wq = q - pu
-        best = min(best, _through_edge(du, da, L, 1.0 / L, (wq * ex).sum(), min(0.0, (wq * ey).sum()), np.inf))
+        best = min(best, _through_edge(du, da, L, (wq * ex).sum(), min(0.0, (wq * ey).sum()), np.inf))
     return best
 
 

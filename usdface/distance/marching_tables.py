@@ -25,9 +25,10 @@ from ..numba_cache import njit, notice_compiling
 
 __all__ = ["HAVE_NUMBA", "MarchingMesh", "marching_mesh_bytes", "morton_order", "search_bytes"]
 
-#: columns of :attr:`MarchingMesh.wedge_geom` and :attr:`MarchingMesh.split_geom`
-WEDGE_COLUMNS = ("la", "lb", "bx", "by", "ax", "ay", "inv_la", "inv_lb")
-SPLIT_COLUMNS = ("luw", "lub", "lwb", "bx", "by", "inv_luw")
+#: the 24-byte rows of :attr:`MarchingMesh.wedges` and :attr:`MarchingMesh.splits`: two int32
+#: vertex indices (read through an int32 view of the same memory), then four float32 lengths
+WEDGE_COLUMNS = ("a", "b", "la", "lb", "bx", "by")
+SPLIT_COLUMNS = ("u", "w", "luw", "lwb", "bx", "by")
 #: unfolding gives up after this many triangles (the corner then keeps its real triangle only)
 MAX_UNFOLD = 12
 
@@ -58,24 +59,22 @@ class MarchingMesh:
         The vertices in the tables' order.
     ptr : ndarray, shape (N + 1,), int64
         Wedges of vertex v (tables' order): rows ``ptr[v]:ptr[v + 1]``, in triangle order.
-    wedge_vertices : ndarray, shape (W, 2), int32
-        For each corner v of each triangle (v, a, b): a and b (tables' order).
-    wedge_geom : ndarray, shape (W, 8), float32
-        :data:`WEDGE_COLUMNS`: ``|va|``, ``|vb|``; b at (bx, by) in the frame v = origin, a on
-        +x (by <= 0); a at (ax, ay) in the frame v = origin, b on +x (ay <= 0); ``1 / |va|``,
-        ``1 / |vb|`` (0 for a zero-length side). Mesh units.
+    wedges : ndarray, shape (W, 6), float32
+        One row per corner v of each triangle (v, a, b), :data:`WEDGE_COLUMNS`: a and b (int32,
+        tables' order; :attr:`wedge_vertices`), ``|va|``, ``|vb|`` and b at (bx, by) in the frame
+        v = origin, a on +x, by <= 0 (:attr:`wedge_geom`). Mesh units. (a in the frame v = origin,
+        b on +x is ``(bx, by) |va| / |vb|``.)
     sptr : ndarray, shape (N + 1,), int64
         Split rows targeting vertex b (tables' order): ``sptr[b]:sptr[b + 1]``.
-    split_vertices : ndarray, shape (K, 2), int32
-        Each virtual triangle (u, w) seen from its target b (tables' order).
-    split_geom : ndarray, shape (K, 6), float32
-        :data:`SPLIT_COLUMNS`: ``|uw|``, ``|ub|``, ``|wb|`` (unfolded), b at (bx, by) in the frame
-        u = origin, w on +x (by <= 0), ``1 / |uw|``.
+    splits : ndarray, shape (K, 6), float32
+        One row per virtual triangle (u, w) of an obtuse corner b, :data:`SPLIT_COLUMNS`: u and w
+        (int32; :attr:`split_vertices`), ``|uw|``, ``|wb|`` (unfolded) and b at (bx, by) in the
+        frame u = origin, w on +x, by <= 0 (:attr:`split_geom`).
     n_obtuse, n_split : int
         Obtuse corners, and those split (the others keep their real triangle's update only).
     """
 
-    _arrays = ("ptr", "wedge_vertices", "wedge_geom", "sptr", "split_vertices", "split_geom")
+    _arrays = ("ptr", "wedges", "sptr", "splits")
 
     def __init__(self, points, triangles, *, max_unfold: int = MAX_UNFOLD):
         if not HAVE_NUMBA:  # pragma: no cover
@@ -89,10 +88,10 @@ class MarchingMesh:
         self.rank[self.order] = np.arange(n)
         self.points = p = p[self.order]
         t = self.rank[np.asarray(triangles, dtype=np.int64).reshape(-1, 3)]
-        self.ptr, self.wedge_vertices, self.wedge_geom = _wedge_tables(p, t, n)
+        self.ptr, self.wedges = _wedge_tables(p, t, n)
         counts = np.zeros(2, dtype=np.int64)
-        slot_b, slot_v, slot_g = _split_tables(p, t, self.ptr, self.wedge_vertices, int(max_unfold), counts)
-        self.sptr, self.split_vertices, self.split_geom = _rows_by_target(slot_b, slot_v, slot_g, n)
+        slot_b, slots = _split_tables(p, t, self.ptr, self.wedges.view(np.int32), int(max_unfold), counts)
+        self.sptr, self.splits = _rows_by_target(slot_b, slots, n)
         self.n_obtuse, self.n_split = int(counts[0]), int(counts[1])
 
     @property
@@ -100,21 +99,43 @@ class MarchingMesh:
         return sum(getattr(self, k).nbytes for k in self._arrays)
 
     @property
+    def wedge_vertices(self) -> np.ndarray:
+        """(W, 2) int32 view: a and b of each wedge (tables' order)."""
+        return self.wedges.view(np.int32)[:, :2]
+
+    @property
+    def wedge_geom(self) -> np.ndarray:
+        """(W, 4) float32 view: ``|va|``, ``|vb|``, bx, by of each wedge."""
+        return self.wedges[:, 2:]
+
+    @property
+    def split_vertices(self) -> np.ndarray:
+        """(K, 2) int32 view: u and w of each split row (tables' order)."""
+        return self.splits.view(np.int32)[:, :2]
+
+    @property
+    def split_geom(self) -> np.ndarray:
+        """(K, 4) float32 view: ``|uw|``, ``|wb|``, bx, by of each split row."""
+        return self.splits[:, 2:]
+
+    @property
     def mean_edge(self) -> float:
         """Mean length of the wedges' sides (mesh units; 0 for a mesh without one)."""
-        return float(self.wedge_geom[:, 0].mean(dtype=np.float64)) if self.wedge_geom.size else 0.0
+        return float(self.wedges[:, 2].mean(dtype=np.float64)) if self.wedges.size else 0.0
 
     def tables(self) -> tuple:
-        return tuple(getattr(self, k) for k in self._arrays)
+        """The arrays the search kernel reads: ptr, wedges (int32 view, float32), sptr, splits
+        (int32 view, float32)."""
+        return self.ptr, self.wedges.view(np.int32), self.wedges, self.sptr, self.splits.view(np.int32), self.splits
 
 
 def marching_mesh_bytes(n_points: int, n_triangles: int) -> int:
     """Upper bound of :class:`MarchingMesh`'s memory for a mesh of this size (bytes), including
     the temporaries of building it."""
-    wedges = 3 * n_triangles * (2 * 4 + 8 * 4)
-    splits = 2 * n_triangles * (2 * 4 + 6 * 4)    # at most one obtuse corner per triangle, 2 splits
-    # corner slots (int64, 3 per triangle), split slots
-    build = n_triangles * (3 * 8 + 2 * (8 + 2 * 4 + 6 * 4)) + 8 * (n_points + 1)
+    wedges = 3 * n_triangles * 24
+    splits = 2 * n_triangles * 24                 # at most one obtuse corner per triangle, 2 splits
+    # corner slots (int64, 3 per triangle), split slots (target int64 + a row)
+    build = n_triangles * (3 * 8 + 2 * (8 + 24)) + 8 * (n_points + 1)
     reorder = n_points * (8 + 8 + 24) + n_triangles * 3 * 8 * 2    # order, rank, points, renumbered triangles
     return 2 * 8 * (n_points + 1) + wedges + splits + build + reorder
 
@@ -191,7 +212,7 @@ def _wedge_tables(p, t, n):
 
     Returns
     -------
-    ptr : (N + 1,) int64 row offsets; (W, 2) int32 wedge vertices; (W, 8) float32 wedge geometry.
+    ptr : (N + 1,) int64 row offsets; (W, 6) float32 wedge rows (:data:`WEDGE_COLUMNS`).
     """
     nt = t.shape[0]
     # rows by counting (a stable counting sort of the corners by vertex), then the geometry of
@@ -210,8 +231,8 @@ def _wedge_tables(p, t, n):
             for c in range(3):
                 slot[3 * f + c] = fill[t[f, c]]
                 fill[t[f, c]] += 1
-    wv = np.empty((ptr[n], 2), np.int32)
-    wg = np.empty((ptr[n], 8), np.float32)
+    wg = np.empty((ptr[n], 6), np.float32)
+    wv = wg.view(np.int32)
     for f in range(nt):
         for c in range(3):
             k = slot[3 * f + c]
@@ -242,24 +263,20 @@ def _wedge_tables(p, t, n):
             sin_ /= norm
             wv[k, 0] = a
             wv[k, 1] = b
-            wg[k, 0] = la
-            wg[k, 1] = lb
-            wg[k, 2] = lb * cos_
-            wg[k, 3] = -lb * sin_
-            wg[k, 4] = la * cos_
-            wg[k, 5] = -la * sin_
-            wg[k, 6] = 1.0 / la if la > 0.0 else 0.0
-            wg[k, 7] = 1.0 / lb if lb > 0.0 else 0.0
-    return ptr, wv, wg
+            wg[k, 2] = la
+            wg[k, 3] = lb
+            wg[k, 4] = lb * cos_
+            wg[k, 5] = -lb * sin_
+    return ptr, wg
 
 
 @njit(cache=True, nogil=True)
-def _rows_by_target(slot_b, slot_v, slot_g, n):
+def _rows_by_target(slot_b, slots, n):
     """The filled split slots as rows grouped by target vertex (a stable counting sort).
 
     Returns
     -------
-    sptr : (N + 1,) int64; (K, 2) int32 split vertices; (K, 6) float32 split geometry.
+    sptr : (N + 1,) int64; (K, 6) float32 split rows (:data:`SPLIT_COLUMNS`).
     """
     sptr = np.zeros(n + 1, np.int64)
     for i in range(slot_b.size):
@@ -267,8 +284,9 @@ def _rows_by_target(slot_b, slot_v, slot_g, n):
             sptr[slot_b[i] + 1] += 1
     for v in range(n):
         sptr[v + 1] += sptr[v]
-    sv = np.empty((sptr[n], 2), np.int32)
-    sg = np.empty((sptr[n], slot_g.shape[1]), np.float32)
+    rows = np.empty((sptr[n], 6), np.float32)
+    out = rows.view(np.int32)          # copied bit for bit: two of the columns are integers
+    src = slots.view(np.int32)
     fill = sptr[:-1].copy()
     for i in range(slot_b.size):
         b = slot_b[i]
@@ -276,11 +294,9 @@ def _rows_by_target(slot_b, slot_v, slot_g, n):
             continue
         k = fill[b]
         fill[b] += 1
-        sv[k, 0] = slot_v[i, 0]
-        sv[k, 1] = slot_v[i, 1]
-        for j in range(slot_g.shape[1]):
-            sg[k, j] = slot_g[i, j]
-    return sptr, sv, sg
+        for j in range(6):
+            out[k, j] = src[i, j]
+    return sptr, rows
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -298,7 +314,7 @@ def _across(ptr, wv, cu, ca, x):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _emit(slot_b, slot_v, slot_g, k, b, u, w, ux, uy, wx, wy):
+def _emit(slot_b, slots, k, b, u, w, ux, uy, wx, wy):
     """Slot k = virtual triangle (u at (ux, uy), w at (wx, wy)) of target b at the origin;
     left empty (b = -1) when degenerate."""
     ex = wx - ux
@@ -311,14 +327,13 @@ def _emit(slot_b, slot_v, slot_g, k, b, u, w, ux, uy, wx, wy):
     cos_u = (-ex * ux - ey * uy) / (lo * lu)
     sin_u = abs(-ex * uy + ey * ux) / (lo * lu)
     slot_b[k] = b
-    slot_v[k, 0] = u
-    slot_v[k, 1] = w
-    slot_g[k, 0] = lo
-    slot_g[k, 1] = lu
-    slot_g[k, 2] = lw
-    slot_g[k, 3] = lu * cos_u
-    slot_g[k, 4] = -lu * sin_u
-    slot_g[k, 5] = 1.0 / lo
+    ints = slots.view(np.int32)
+    ints[k, 0] = u
+    ints[k, 1] = w
+    slots[k, 2] = lo
+    slots[k, 3] = lw
+    slots[k, 4] = lu * cos_u
+    slots[k, 5] = -lu * sin_u
 
 
 @njit(cache=True, nogil=True)
@@ -371,12 +386,11 @@ def _unfold(p, ptr, wv, b, u, a, ux, ax, ay, max_unfold):
 @njit(cache=True, nogil=True)
 def _split_tables(p, t, ptr, wv, max_unfold, counts):
     """Two slots per triangle (a triangle has at most one obtuse corner): target b (-1 for an
-    empty slot), (u, w) and the geometry (:data:`SPLIT_COLUMNS`). ``counts`` receives
-    (obtuse corners, split corners)."""
+    empty slot) and the row (:data:`SPLIT_COLUMNS`). ``counts`` receives (obtuse corners, split
+    corners)."""
     nt = t.shape[0]
     slot_b = np.full(2 * nt, -1, np.int64)
-    slot_v = np.empty((2 * nt, 2), np.int32)
-    slot_g = np.empty((2 * nt, 6), np.float32)
+    slots = np.empty((2 * nt, 6), np.float32)
     obtuse = np.zeros(nt, np.int64)
     split = np.zeros(nt, np.int64)
     for f in range(nt):
@@ -407,8 +421,8 @@ def _split_tables(p, t, ptr, wv, max_unfold, counts):
             if w < 0 or w == u or w == a:
                 continue
             split[f] = 1
-            _emit(slot_b, slot_v, slot_g, 2 * f, b, u, w, lu, 0.0, wx, wy)
-            _emit(slot_b, slot_v, slot_g, 2 * f + 1, b, a, w, ax, ay, wx, wy)
+            _emit(slot_b, slots, 2 * f, b, u, w, lu, 0.0, wx, wy)
+            _emit(slot_b, slots, 2 * f + 1, b, a, w, ax, ay, wx, wy)
     counts[0] = obtuse.sum()
     counts[1] = split.sum()
-    return slot_b, slot_v, slot_g
+    return slot_b, slots
