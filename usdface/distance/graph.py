@@ -17,12 +17,15 @@ is used (same distances; no bounded search).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse import csgraph
 
 from ..errors import InputError
 from ..numba_cache import CACHE, notice_compiling
+
+if TYPE_CHECKING:  # annotations only: imported where used
+    import scipy.sparse
 
 try:  # numba is optional: the scipy path gives the same distances
     import numba as _nb
@@ -104,7 +107,7 @@ def polygon_edges(face_vertex_counts, face_vertex_indices) -> np.ndarray:
     return _unique_edges(np.stack([idx, idx[nxt]], axis=1))
 
 
-def edge_graph(points, edges) -> sp.csr_matrix:
+def edge_graph(points, edges) -> scipy.sparse.csr_matrix:
     """Symmetric sparse graph of the mesh edges weighted by their Euclidean length.
 
     Parameters
@@ -118,6 +121,8 @@ def edge_graph(points, edges) -> sp.csr_matrix:
         ``G[a, b] = G[b, a] = ||points[a] - points[b]||``. A zero-length edge (coincident
         vertices) is stored as an explicit zero, which scipy.sparse.csgraph treats as an edge.
     """
+    import scipy.sparse as sp  # here, not at import: the fast-marching back-end needs no sparse graph
+
     p = np.asarray(points, dtype=np.float64)
     e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     n = p.shape[0]
@@ -148,6 +153,9 @@ def connected_components(n_points: int, triangles=None, *, edges=None) -> tuple[
         Component of each vertex, numbered by decreasing size (0 = largest); a vertex used by no
         triangle is a component of its own.
     """
+    import scipy.sparse as sp
+    from scipy.sparse import csgraph
+
     e = mesh_edges(triangles) if edges is None else np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     a = sp.coo_matrix((np.ones(e.shape[0], dtype=np.int8), (e[:, 0], e[:, 1])), shape=(n_points, n_points))
     n, labels = csgraph.connected_components(a, directed=False)
@@ -213,7 +221,7 @@ def source_starts(points, source_tri_vertices, source_barycentrics):
     return start_ptr, start_vertex, start_dist, sink_ptr, sink_source, sink_weight, direct
 
 
-def augmented_graph(graph, points, source_tri_vertices, source_barycentrics) -> sp.csr_matrix:
+def augmented_graph(graph, points, source_tri_vertices, source_barycentrics) -> scipy.sparse.csr_matrix:
     """The edge graph with one source node and one sink node per surface-point source.
 
     Node ``N + s`` is source s (edges to its triangle's vertices, Euclidean lengths), node
@@ -232,6 +240,8 @@ def augmented_graph(graph, points, source_tri_vertices, source_barycentrics) -> 
     -------
     scipy.sparse.csr_matrix, shape (N + 2S, N + 2S)
     """
+    import scipy.sparse as sp
+
     g = sp.coo_matrix(graph)
     n = g.shape[0]
     start_ptr, sv, sd, _, _, _, direct = source_starts(points, source_tri_vertices, source_barycentrics)
@@ -494,6 +504,9 @@ def multi_source_shortest_paths(graph, points, source_tri_vertices, source_baryc
     settled : ndarray, shape (S,), int64
         Vertices each search settled (the work done).
     """
+    import scipy.sparse as sp
+    from scipy.sparse import csgraph
+
     g = sp.csr_matrix(graph)
     n = g.shape[0]
     tri = np.asarray(source_tri_vertices, dtype=np.int64).reshape(-1, 3)
