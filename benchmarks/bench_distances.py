@@ -30,12 +30,13 @@ baseline starts from the marker's nearest vertex (``nearestVertices`` of the bin
 search per source either way, over the whole mesh, nothing bounded. The constraint vertices are
 vertices for both.
 
-Printed per size: wall time of each process, the searches' time per source and the set-up time
-(from the ``usdface: INFO: geodesic ...`` line that ``-v`` prints; the baseline prints its own
-phases), the ratios to the baseline of the same run, and fmm's error against exact geodesics
-(MMP on the 2020-vertex face: exact at its vertices on the refined surface, marker columns, pairs
-from one mean edge to 3 kernel widths). The load average is printed before and after each size:
-other processes share the CPUs, so read the ratios.
+Printed per size: wall and CPU (user + system) time of each process, the searches' time per
+source and the set-up time (from the ``usdface: INFO: geodesic ...`` line that ``-v`` prints; the
+baseline prints its own phases), the ratios to the baseline of the same run, and fmm's error
+against exact geodesics (MMP on the 2020-vertex face: exact at its vertices on the refined surface,
+marker columns, pairs from one mean edge to 3 kernel widths). The load average is printed before
+and after each size: other processes share the CPUs, so read the ratios; the CPU ratio does not
+depend on the share of the cores a process is given.
 
 ``--usdface-root DIR`` times another checkout's `usdface distances` (e.g. an older commit
 exported with ``git archive``) on the same layers; when its output has no timing line, the
@@ -51,6 +52,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -80,12 +82,19 @@ def usdface(*args) -> subprocess.CompletedProcess:
     return r
 
 
+def children_cpu() -> float:
+    """User + system CPU seconds of the finished child processes so far."""
+    u = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return u.ru_utime + u.ru_stime
+
+
 def timed(cmd, env=None) -> tuple[float, subprocess.CompletedProcess]:
-    """Wall time of one process, start to exit."""
-    t0 = time.perf_counter()
+    """Wall time of one process, start to exit (its CPU time in ``timed.cpu``)."""
+    t0, c0 = time.perf_counter(), children_cpu()
     # from a neutral folder: the current one would come first on sys.path (a checkout's usdface)
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
     seconds = time.perf_counter() - t0
+    timed.cpu = children_cpu() - c0
     if r.returncode:
         raise SystemExit(f"{' '.join(map(str, cmd))} failed ({r.returncode}):\n{r.stderr}")
     return seconds, r
@@ -120,7 +129,7 @@ def distances_cmd(mesh, binding, backend, out) -> list:
 def run_cli(cmd, env) -> dict:
     seconds, r = timed(cmd, env)
     summary = json.loads(r.stdout)
-    out = {"wall": seconds, "compute": summary["parameters"]["computeSeconds"],
+    out = {"wall": seconds, "cpu": timed.cpu, "compute": summary["parameters"]["computeSeconds"],
            "sources": summary["markers"] + summary["constraintCentres"]}
     m = INFO.search(r.stderr)
     if m is not None:        # a checkout that logs its set-up and search times
@@ -216,24 +225,28 @@ def bench_size(work, n, capture, repeat, env, coarse, probe) -> dict:
         rows["graph"][-1].setdefault("search", float("nan"))
         rows["graph"][-1].setdefault("threads", 0)
         seconds, r = timed(base_cmd, env)
-        rows["scipy"].append({"wall": seconds, **json.loads(r.stdout)})
+        rows["scipy"].append({"wall": seconds, "cpu": timed.cpu, **json.loads(r.stdout)})
     d = np.load(work / f"D_n{n}.npy", mmap_mode="r")
     assert d.shape == (s, nv) and np.isfinite(d).all()
     sc = median(rows["scipy"], "wall")
     sc_src = median(rows["scipy"], "dijkstra") / s
-    res = {"n": n, "vertices": nv, "sources": s, "scipy": sc, "scipy_src": sc_src,
+    sc_cpu = median(rows["scipy"], "cpu")
+    res = {"n": n, "vertices": nv, "sources": s, "scipy": sc, "scipy_src": sc_src, "scipy_cpu": sc_cpu,
            "scipy_setup": median(rows["scipy"], "graph")}
     print(f"   {s} sources ({markers} markers + {s - markers} constraint vertices); "
           f"first runs (numba cache cold or warm as found): fmm {first['fmm']['wall']:.2f} s, "
           f"graph {first['graph']['wall']:.2f} s")
-    print(f"   {'process':28s} {'wall s':>8s} {'/scipy':>7s} {'set-up s':>9s} {'search s':>9s} {'s/source':>9s} threads")
+    print(f"   {'process':28s} {'wall s':>8s} {'/scipy':>7s} {'set-up s':>9s} {'search s':>9s} {'s/source':>9s} "
+          f"threads {'cpu s':>7s} {'/scipy':>7s}")
     print(f"   {'scipy script (baseline)':28s} {sc:8.2f} {1.0:7.2f} {res['scipy_setup']:9.2f} "
-          f"{median(rows['scipy'], 'dijkstra'):9.2f} {sc_src:9.4f}       1")
+          f"{median(rows['scipy'], 'dijkstra'):9.2f} {sc_src:9.4f}       1 {sc_cpu:7.2f} {1.0:7.2f}")
     for b in ("fmm", "graph"):
         w, su, se = median(rows[b], "wall"), median(rows[b], "setup"), median(rows[b], "search")
-        res.update({b: w, b + "_setup": su, b + "_src": se / s})
+        cpu = median(rows[b], "cpu")
+        res.update({b: w, b + "_setup": su, b + "_src": se / s, b + "_cpu": cpu})
         print(f"   {'usdface distances --backend ' + b:28s} {w:8.2f} {w / sc:7.2f} {su:9.2f} {se:9.2f} "
-              f"{se / s:9.4f} {rows[b][0]['threads']:7d}" + ("  (set-up, search: probe)" if b == "fmm" and probe else ""))
+              f"{se / s:9.4f} {rows[b][0]['threads']:7d} {cpu:7.2f} {cpu / sc_cpu:7.2f}"
+              + ("  (set-up, search: probe)" if b == "fmm" and probe else ""))
     print(f"   per source, fmm / scipy: {res['fmm_src'] / sc_src:.2f}; fmm set-up {res['fmm_setup']:.2f} s "
           f"(scipy's edge graph {res['scipy_setup']:.2f} s)")
     print("   baseline phases (median s): " + ", ".join(
@@ -286,11 +299,13 @@ def main(argv=None):
                 coarse = (binding, coarse_edge, width)
         print("\nsummary (medians; ratios to the scipy script of the same size and run):")
         print(f"{'vertices':>9s} {'S':>4s} | {'fmm s/src':>9s} {'scipy s/src':>11s} {'ratio':>6s} | "
-              f"{'fmm set-up':>10s} | {'fmm proc':>8s} {'graph proc':>10s} {'scipy proc':>10s} | {'fmm/sc':>6s} {'graph/sc':>8s}")
+              f"{'fmm set-up':>10s} | {'fmm proc':>8s} {'graph proc':>10s} {'scipy proc':>10s} | {'fmm/sc':>6s} {'graph/sc':>8s} "
+              f"| {'fmm cpu/sc':>10s}")
         for r in results:
             print(f"{r['vertices']:9d} {r['sources']:4d} | {r['fmm_src']:9.4f} {r['scipy_src']:11.4f} "
                   f"{r['fmm_src'] / r['scipy_src']:6.2f} | {r['fmm_setup']:10.2f} | {r['fmm']:8.2f} {r['graph']:10.2f} "
-                  f"{r['scipy']:10.2f} | {r['fmm'] / r['scipy']:6.2f} {r['graph'] / r['scipy']:8.2f}")
+                  f"{r['scipy']:10.2f} | {r['fmm'] / r['scipy']:6.2f} {r['graph'] / r['scipy']:8.2f} "
+                  f"| {r['fmm_cpu'] / r['scipy_cpu']:10.2f}")
         print(f"load average at end: {os.getloadavg()[0]:.2f}")
 
 
