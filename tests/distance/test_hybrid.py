@@ -117,3 +117,23 @@ def test_refuses_before_any_work_when_memory_is_short(face):
                                             r".*Euclidean matrix \+ matrix 662.6 KB.* but only 1.0 MB is allowed"):
         hybrid_distances(solver, tri, bary, loops, radius=1.0, sigma=2.0)
     assert solver._marching is None          # refused before the search tables were built
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_blend_is_the_same_in_either_memory_order(dtype):
+    """The blend walks a source-major geodesic matrix (graph) by columns and a vertex-major one
+    (fmm) by blocks of rows: the same numbers either way, +inf entries (not searched) included."""
+    from usdface.distance.hybrid import _blend
+    rng = np.random.default_rng(0)
+    n, s = 20000, 7
+    euc = np.asfortranarray(rng.random((n, s)).astype(dtype))
+    geo = rng.random((n, s)) + 1.0
+    inside = rng.random(n) > 0.4
+    geo[~inside & (np.arange(n) % 3 == 0)] = np.inf        # outside the geodesic region: not searched
+    w = np.where(inside, rng.random(n), 0.0).astype(dtype)
+    by_column, by_rows = euc.copy(order="F"), euc.copy(order="F")
+    _blend(by_column, np.asfortranarray(geo), inside, w)
+    _blend(by_rows, np.ascontiguousarray(geo), inside, w)
+    np.testing.assert_array_equal(by_rows, by_column)
+    np.testing.assert_array_equal(by_column[~inside], euc[~inside])
+    assert np.isfinite(by_column).all()

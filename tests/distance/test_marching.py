@@ -5,6 +5,7 @@ from __future__ import annotations
 import heapq
 import math
 import warnings
+from collections import deque
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from scipy.spatial import Delaunay
 
 from usdface.distance import DistanceWarning, GeodesicSolver, geodesic_distances
 from usdface.distance import graph as G
-from usdface.distance.marching import MarchingMesh, march, triangle_neighbours
+from usdface.distance.marching import MarchingMesh, march, queue_buckets
 
 
 def planar_mesh(n=600, seed=0):
@@ -97,14 +98,19 @@ def test_split_tables_are_true_unfoldings():
     lies within 90 degrees of both edges of the obtuse corner b (its acute section)."""
     pts, tris = planar_mesh(300, seed=3)
     mm = MarchingMesh(pts, tris)
+    np.testing.assert_array_equal(mm.points, pts[mm.order])
+    pts = mm.points                                 # the tables number the vertices in their order
     b = np.repeat(np.arange(len(pts)), np.diff(mm.sptr))
-    u, w = mm.su.astype(int), mm.sw.astype(int)
-    for stored, x, y in ((mm.slo, u, w), (mm.slu, u, b), (mm.slw, w, b)):
+    u, w = mm.split_vertices[:, 0].astype(int), mm.split_vertices[:, 1].astype(int)
+    luw, lwb, bx, by = mm.split_geom.astype(np.float64).T
+    for stored, x, y in ((luw, u, w), (lwb, w, b), (np.hypot(bx, by), u, b)):
         np.testing.assert_allclose(stored, np.linalg.norm(pts[x] - pts[y], axis=1), rtol=1e-6)
+    # b in the frame u = origin, w on +x: (u->b . u->w / |uw|, -|cross| / |uw|)
+    ub, uw = pts[b] - pts[u], pts[w] - pts[u]
+    np.testing.assert_allclose(bx, np.einsum("ij,ij->i", ub, uw) / luw, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(by, -np.abs(np.cross(uw, ub)[:, 2]) / luw, rtol=1e-5, atol=1e-6)
     # each split corner: b's two virtual triangles share w; (b, u) and (b, w) within 90 degrees
     assert (np.einsum("ij,ij->i", pts[u] - pts[b], pts[w] - pts[b]) >= -1e-9).all()
-    nb = triangle_neighbours(tris)
-    assert (nb >= -1).all() and (nb < len(tris)).all()
 
 
 def test_against_exact_geodesics_on_sample_faces(shared_data):
@@ -176,26 +182,59 @@ def _frame(p, u, a, b):
     return L, bx, -math.sqrt(max(0.0, float(eb @ eb) - bx * bx))
 
 
-def reference_march(p, tris, splits, starts):
-    """Dijkstra order with heapq; each settled vertex updates the other two corners of its triangles
-    (edge and triangle candidates), reopening a settled vertex a later update shortens; obtuse
-    corners read their virtual triangles (from ``splits``, laid flat here from their lengths) when
-    they leave the queue."""
+class StrictQueue:
+    """Strict distance order (heapq)."""
+
+    def __init__(self):
+        self.heap = []
+
+    def push(self, d, v):
+        heapq.heappush(self.heap, (d, v))
+
+    def pop(self):
+        return heapq.heappop(self.heap)[1] if self.heap else None
+
+
+class BucketQueue:
+    """The kernel's untidy queue: buckets ``width`` wide, first in first out within one, starting
+    at the bucket of distance ``first``; a distance below the current bucket joins the current
+    bucket."""
+
+    def __init__(self, width, first):
+        self.inv, self.buckets, self.size = 1.0 / width, {}, 0
+        self.cur = int(first * self.inv)
+
+    def push(self, d, v):
+        self.buckets.setdefault(max(int(d * self.inv), self.cur), deque()).append(v)
+        self.size += 1
+
+    def pop(self):
+        if not self.size:
+            return None
+        while not self.buckets.get(self.cur):
+            self.cur += 1
+        self.size -= 1
+        return self.buckets[self.cur].popleft()
+
+
+def reference_march(p, tris, splits, starts, queue):
+    """Each vertex leaving ``queue`` (StrictQueue: Dijkstra order; BucketQueue) updates the other
+    two corners of its triangles (edge and triangle candidates), reopening a settled vertex a later
+    update shortens; obtuse corners read their virtual triangles (from ``splits``, laid flat here
+    from their lengths) when they leave the queue. ``starts``: (vertex, distance)."""
     corners: dict = {}
     for t in tris:
         for k in range(3):
             corners.setdefault(int(t[k]), []).append((int(t[(k + 1) % 3]), int(t[(k + 2) % 3])))
     n = len(p)
-    dist, done, heap = [math.inf] * n, [False] * n, []
+    dist, done = [math.inf] * n, [False] * n
     for v, d in starts:
-        dist[v] = min(dist[v], d)
-    for v, _ in starts:
-        heapq.heappush(heap, (dist[v], v))
-    while heap:
-        d, v = heapq.heappop(heap)
-        if done[v] or d > dist[v]:
+        dist[v] = d
+        queue.push(d, v)
+    while (v := queue.pop()) is not None:
+        if done[v]:
             continue
-        best = d
+        d = best = dist[v]
         for u, w, lo, lu, lw in splits.get(v, []):
             if done[w]:
                 c = dist[w] + lw
@@ -206,7 +245,7 @@ def reference_march(p, tris, splits, starts):
                 best = min(best, c)
         if best < d:
             dist[v] = best
-            heapq.heappush(heap, (best, v))
+            queue.push(best, v)
             continue
         done[v] = True
         for a, b in corners.get(v, []):
@@ -215,15 +254,26 @@ def reference_march(p, tris, splits, starts):
                     c = _through_edge(d, dist[other], *_frame(p, v, other, tgt))
                     if c < dist[tgt] * (1 - 1e-6):
                         done[tgt], dist[tgt] = False, c
-                        heapq.heappush(heap, (c, tgt))
+                        queue.push(c, tgt)
                 elif not done[tgt]:
                     c = d + float(np.linalg.norm(p[tgt] - p[v]))
                     if done[other]:
                         c = min(c, _through_edge(d, dist[other], *_frame(p, v, other, tgt)))
                     if c < dist[tgt]:
                         dist[tgt] = c
-                        heapq.heappush(heap, (c, tgt))
+                        queue.push(c, tgt)
     return np.array([dist[i] if done[i] else math.inf for i in range(n)])
+
+
+def split_rows(mm):
+    """{b: [(u, w, |uw|, |ub|, |wb|)]} of a MarchingMesh, in the mesh's vertex numbering."""
+    splits: dict = {}
+    for b in range(mm.n_points):
+        for k in range(mm.sptr[b], mm.sptr[b + 1]):
+            (u, w), (lo, lw, bx, by) = mm.order[mm.split_vertices[k]], mm.split_geom[k]
+            splits.setdefault(int(mm.order[b]), []).append((int(u), int(w), float(lo), float(np.hypot(bx, by)),
+                                                            float(lw)))
+    return splits
 
 
 def test_kernel_equals_slow_reference(shared_data):
@@ -231,19 +281,19 @@ def test_kernel_equals_slow_reference(shared_data):
     m = read_mesh(shared_data / "meshes" / "mediapipe_canonical_face_model_holes.obj")
     pts, tris = m.points, m.triangles()
     mm = MarchingMesh(pts, tris)
-    splits: dict = {}
-    for b in range(len(pts)):
-        for k in range(mm.sptr[b], mm.sptr[b + 1]):
-            splits.setdefault(b, []).append((int(mm.su[k]), int(mm.sw[k]), float(mm.slo[k]), float(mm.slu[k]),
-                                             float(mm.slw[k])))
+    splits = split_rows(mm)
     tri, bary = sources_in(tris, 4, seed=5)
     vertex, _, settled = march(mm, pts, tri, bary)
     assert (settled == len(pts)).all()
+    width = queue_buckets(mm)[0]
     for s in range(4):
         q = bary[s] @ pts[tri[s]]
-        starts = [(int(v), float(np.linalg.norm(pts[v] - q))) for v in set(tri[s].tolist())]
-        ref = reference_march(pts, tris, splits, starts)
+        starts = [(v, float(np.linalg.norm(pts[v] - q))) for v in dict.fromkeys(tri[s].tolist())]
+        ref = reference_march(pts, tris, splits, starts, BucketQueue(width, min(d for _, d in starts)))
         np.testing.assert_allclose(vertex[:, s], ref, rtol=2e-6, atol=1e-7)
+        # the untidy order moves distances by much less than the method's error (0.3-1 % here)
+        strict = reference_march(pts, tris, splits, starts, StrictQueue())
+        np.testing.assert_allclose(vertex[:, s], strict, rtol=3e-5, atol=1e-7)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -286,3 +336,147 @@ def test_degenerate_triangles_and_isolated_vertices():
         r = GeodesicSolver(pts, tris, backend="fmm", components="inf").solve(tri, bary)
     assert np.isfinite(r.vertex[:-1]).all() and np.isinf(r.vertex[-1]).all()
     assert r.vertex[dup, 0] == pytest.approx(r.vertex[tris[0, 0], 0], abs=1e-6)
+
+
+# ------------------------------------------------------------------------------------------------
+# the pieces: the triangle update with its bound, the tables, the report
+
+
+def test_through_edge_with_bound_equals_reference():
+    """The kernel's update returns the reference distance when it is below the bound, +inf when
+    it is not (a late-update check must never lengthen a settled distance)."""
+    from usdface.distance.marching import _through_edge as kernel
+    rng = np.random.default_rng(0)
+    checked = below = 0
+    for i in range(4000):
+        L = rng.uniform(0.2, 2.0)
+        px, py = rng.uniform(-1.0, 3.0), -rng.uniform(0.0, 2.0)
+        if i % 2:       # distances of a true source above the edge: the update usually applies
+            sx, sy = rng.uniform(-2.0, 4.0), rng.uniform(0.05, 5.0)
+            du, da = np.hypot(sx, sy), np.hypot(sx - L, sy)
+        else:           # any distances: circles that may not meet
+            du, da = rng.uniform(0.5, 6.0, 2)
+        ref = _through_edge(du, da, L, px, py)
+        bound = rng.choice([np.inf, ref * rng.uniform(0.9, 1.1) if np.isfinite(ref) else rng.uniform(1, 8)])
+        got = kernel(du, da, L, px, py, bound)
+        if ref < bound:
+            assert got == pytest.approx(ref, rel=1e-12), (du, da, L, px, py, bound)
+            below += 1
+        else:
+            assert got == np.inf, (du, da, L, px, py, bound, ref, got)
+        checked += np.isfinite(ref)
+    assert checked > 800 and below > 400
+
+
+def test_wedge_tables_equal_triangle_geometry(shared_data):
+    """Each vertex's wedges are its triangles' corners in triangle order, laid flat: lengths and
+    the far vertex's position in the frame (v at 0, the other on +x) from the points."""
+    from usdface.io.meshes import read_mesh
+    m = read_mesh(shared_data / "meshes" / "mediapipe_canonical_face_model_holes.obj")
+    p, t = m.points.astype(np.float64), m.triangles()
+    mm = MarchingMesh(p, t)
+    rows = {v: [] for v in range(len(p))}
+    for f in t:
+        for k in range(3):
+            rows[int(f[k])].append((int(f[(k + 1) % 3]), int(f[(k + 2) % 3])))
+    assert mm.ptr[-1] == 3 * len(t)
+    np.testing.assert_array_equal(np.sort(mm.order), np.arange(len(p)))
+    np.testing.assert_array_equal(mm.rank[mm.order], np.arange(len(p)))
+    for v in range(0, len(p), 7):
+        r = mm.rank[v]                                   # v's place in the tables' order
+        got = mm.order[mm.wedge_vertices[mm.ptr[r]:mm.ptr[r + 1]]].tolist()
+        assert [tuple(x) for x in got] == rows[v]
+        for (a, b), g in zip(rows[v], mm.wedge_geom[mm.ptr[r]:mm.ptr[r + 1]].astype(np.float64)):
+            la, bx, by = _frame(p, v, a, b)
+            lb, ax, ay = _frame(p, v, b, a)
+            np.testing.assert_allclose(g, [la, lb, bx, by], rtol=2e-6, atol=1e-6)
+            np.testing.assert_allclose(g[2:] * la / lb, [ax, ay], rtol=2e-6, atol=1e-6)   # a's frame
+
+
+def test_kernel_equals_slow_reference_on_the_makehuman_face(shared_data):
+    """Half of this face's triangles are obtuse: many splits, requeues and late updates."""
+    from usdface.io.meshes import read_mesh
+    m = read_mesh(shared_data / "meshes" / "makehuman_hm08_face_cm.obj")
+    pts, tris = m.points, m.triangles()
+    mm = MarchingMesh(pts, tris)
+    splits = split_rows(mm)
+    rng = np.random.default_rng(7)
+    tri = tris[rng.choice(len(tris), 2, replace=False)]
+    bary = rng.dirichlet([2.0, 2.0, 2.0], size=2)
+    vertex, _, settled = march(mm, pts, tri, bary)
+    assert (settled == len(pts)).all()
+    width = queue_buckets(mm)[0]
+    for s in range(2):
+        q = bary[s] @ pts[tri[s]]
+        starts = [(v, float(np.linalg.norm(pts[v] - q))) for v in dict.fromkeys(tri[s].tolist())]
+        ref = reference_march(pts, tris, splits, starts, BucketQueue(width, min(d for _, d in starts)))
+        np.testing.assert_allclose(vertex[:, s], ref, rtol=2e-6, atol=1e-7)
+        strict = reference_march(pts, tris, splits, starts, StrictQueue())
+        np.testing.assert_allclose(vertex[:, s], strict, rtol=3e-5, atol=1e-7)
+
+
+def test_report_times_set_up_and_searches(caplog):
+    """The solver reports its set-up (first solve only) and its searches, and logs them on one
+    INFO line (benchmarks/bench_distances.py reads it from `usdface distances -v`)."""
+    import logging
+    import re
+    pts, tris = planar_mesh(200, seed=9)
+    solver = GeodesicSolver(pts, tris, backend="fmm")
+    tri, bary = sources_in(tris, 3, seed=3)
+    with caplog.at_level(logging.INFO, logger="usdface"):
+        first = solver.solve(tri, bary).report
+        second = solver.solve(tri[:2], bary[:2]).report
+    assert first.setup_seconds > 0 and first.search_seconds > 0 and first.threads >= 1
+    assert second.setup_seconds == 0.0 and second.search_seconds > 0     # tables reused
+    assert first.search_seconds <= first.seconds          # (the set-up includes the constructor's part)
+    line = re.compile(r"geodesic fmm: (\d+) vertices x (\d+) sources in [\d.]+ s: set-up ([\d.]+) s, "
+                      r"searches ([\d.]+) s \(([\d.]+) s a source on (\d+) threads\)")
+    found = [line.search(r.getMessage()) for r in caplog.records]
+    found = [m for m in found if m]
+    assert [(int(m.group(1)), int(m.group(2))) for m in found] == [(len(pts), 3), (len(pts), 2)]
+
+
+def test_vertex_order_of_the_mesh_does_not_matter(shared_data):
+    """The tables renumber the vertices along a space-filling curve: a shuffled copy of the mesh
+    gives the same distances, entry for entry."""
+    from usdface.io.meshes import read_mesh
+    m = read_mesh(shared_data / "meshes" / "makehuman_hm08_face_cm.obj")
+    pts, tris = m.points, m.triangles()
+    tri, bary = sources_in(tris, 5, seed=6)
+    perm = np.random.default_rng(1).permutation(len(pts))        # new vertex i is old vertex perm[i]
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(len(perm))
+    a = GeodesicSolver(pts, tris, backend="fmm").solve(tri, bary)
+    b = GeodesicSolver(pts[perm], inv[tris], backend="fmm").solve(inv[tri], bary)
+    np.testing.assert_array_equal(b.vertex[inv], a.vertex)
+    np.testing.assert_array_equal(b.sources, a.sources)
+
+
+def test_vertex_major_matrix_in_the_asked_type():
+    """The (N, S) matrix comes vertex-major (C-contiguous, as the analysis layer stores it) in the
+    asked type: float32 is the float64 result rounded."""
+    pts, tris = planar_mesh(150, seed=10)
+    tri, bary = sources_in(tris, 4, seed=11)
+    d64 = GeodesicSolver(pts, tris, backend="fmm").distances(tri, bary)
+    d32 = GeodesicSolver(pts, tris, backend="fmm", dtype=np.float32).distances(tri, bary)
+    assert d64.flags.c_contiguous and d32.flags.c_contiguous and d32.dtype == np.float32
+    np.testing.assert_array_equal(d32, d64.astype(np.float32))
+
+
+def test_morton_order_equals_a_slow_reference():
+    """The tables' vertex order: points sorted (stably) by their interleaved 10-bit grid
+    coordinates, which keeps neighbours in space close in the order."""
+    from usdface.distance.marching_tables import morton_order
+    rng = np.random.default_rng(12)
+    pts = np.concatenate([rng.uniform(-3, 7, (2000, 3)), np.zeros((3, 3))])     # ties keep their order
+    lo, span = pts.min(axis=0), np.ptp(pts, axis=0).max()
+    grid = ((pts - lo) * (1023.0 / span)).astype(np.int64)
+
+    def code(g):
+        return sum(((int(g[k]) >> b) & 1) << (3 * b + k) for b in range(10) for k in range(3))
+
+    want = np.argsort([code(g) for g in grid], kind="stable")
+    got = morton_order(pts)
+    np.testing.assert_array_equal(got, want)
+    step = np.linalg.norm(np.diff(pts[got], axis=0), axis=1).mean()
+    assert step < 0.25 * np.linalg.norm(np.diff(pts, axis=0), axis=1).mean()

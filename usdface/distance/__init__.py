@@ -12,6 +12,7 @@ matrices for the RBF transfer. All lengths are in mesh units.
 - :func:`hybrid_distances`, :func:`hybrid_weights` (Eq. 8), geodesics only where ``w > 0.6``
 - :mod:`usdface.distance.graph`: edge graphs, components, the multi-source search kernel
 - :mod:`usdface.distance.marching`: the fast-marching kernel and its update tables
+- :mod:`usdface.distance.refinement`: mesh refinement and surface-point insertion
 """
 from ..lazy import lazy_exports
 

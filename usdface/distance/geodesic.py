@@ -50,6 +50,7 @@ source lies on which component.
 """
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
 
@@ -58,45 +59,17 @@ import numpy as np
 from ..errors import ComputeError, InputError, OptionError, list_names
 from .methods import BACKENDS, DEFAULT_BACKEND
 from . import graph as _graph
+from .components import triangle_components
+from .fields import auto_t_coef, solve_fields
 from .euclidean import (_check_dtype, check_matrix_memory, pairwise_euclidean, source_points,
                         validate_sources, warn)
 
 __all__ = ["BACKENDS", "DEFAULT_BACKEND", "DistanceReport", "GeodesicResult", "GeodesicSolver", "auto_t_coef",
            "geodesic_distances"]
 
+log = logging.getLogger("usdface")
+
 COMPONENT_POLICIES = ("error", "euclidean", "inf")
-
-#: t_coef = max(1, (L / (AUTO_T_RINGS h))^2): sqrt(t) never smaller than the bounding-box
-#: diagonal over this many mean edge lengths (calibrated on the MakeHuman face, 2k-328k vertices)
-AUTO_T_RINGS = 250.0
-
-
-def auto_t_coef(points, triangles) -> float:
-    """Heat-method time factor that stays accurate at high resolution.
-
-    Parameters
-    ----------
-    points : array_like, shape (N, 3)
-    triangles : array_like, shape (T, 3), int
-        One connected component.
-
-    Returns
-    -------
-    float
-        ``max(1, (L / (250 h))^2)``; L = bounding-box diagonal, h = mean edge length (the h of
-        potpourri3d's ``t = t_coef * h^2``).
-    """
-    p = np.asarray(points, dtype=np.float64)
-    e = _graph.mesh_edges(triangles)
-    if e.size == 0:
-        return 1.0
-    h = float(np.linalg.norm(p[e[:, 0]] - p[e[:, 1]], axis=1).mean())
-    used = np.bincount(np.asarray(triangles).ravel(), minlength=p.shape[0]) > 0
-    diag = float(np.linalg.norm(np.ptp(p[used], axis=0)))
-    if h <= 0:
-        return 1.0
-    return max(1.0, (diag / (AUTO_T_RINGS * h)) ** 2)
-
 
 @dataclass
 class DistanceReport:
@@ -135,6 +108,16 @@ class DistanceReport:
     memory_estimate : int
         Bytes the computation was estimated to need (checked against the memory available).
     seconds : float
+        The whole :meth:`GeodesicSolver.solve` call.
+    setup_seconds : float
+        Building the search structures before the first search: the solver's connected
+        components and, for ``"graph"`` the edge graph, for ``"fmm"`` the update tables; 0 when a
+        previous solve of the same solver built them.
+    search_seconds : float
+        ``"graph"``, ``"fmm"``: the searches themselves (all sources, wall time, ``threads`` in
+        parallel); the other back-ends: their solves.
+    threads : int
+        Threads the searches ran on (numba's, at most one per source).
     notes : list of str
     """
 
@@ -155,6 +138,9 @@ class DistanceReport:
     max_distance: float | None = None
     memory_estimate: int = 0
     seconds: float = 0.0
+    setup_seconds: float = 0.0
+    search_seconds: float = 0.0
+    threads: int = 1
     notes: list = field(default_factory=list)
 
 
@@ -216,6 +202,7 @@ class GeodesicSolver:
     def __init__(self, points, triangles, *, backend: str = DEFAULT_BACKEND, edges=None, t_coef="auto",
                  use_robust: bool = True, components: str = "error", dtype=np.float64,
                  memory_limit: int | None = None, engine: str = "auto") -> None:
+        started = time.perf_counter()
         if backend not in BACKENDS:
             raise OptionError(f"backend must be one of {', '.join(BACKENDS)}; got {backend!r}")
         if components not in COMPONENT_POLICIES:
@@ -246,13 +233,14 @@ class GeodesicSolver:
         self.dtype = _check_dtype(dtype)
         self.memory_limit = memory_limit
         self.engine = engine
-        tri_edges = _graph.mesh_edges(tris)
-        self.edges = tri_edges if edges is None else np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-        self.n_components, self.component_labels = _graph.connected_components(pts.shape[0], edges=tri_edges)
+        self._edges = None if edges is None else np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+        # from the triangles directly: the edge list (a sort of 3T keys) is built only for "graph"
+        self.n_components, self.component_labels = triangle_components(pts.shape[0], tris)
         self._graph = None
         self._marching = None
         self._field_cache: dict = {}
         self._last: tuple | None = None
+        self._setup_unreported = time.perf_counter() - started   # goes into the next report
         self.report: DistanceReport | None = None
 
     # -------------------------------------------------------------------------------------------
@@ -264,6 +252,14 @@ class GeodesicSolver:
     @property
     def n_points(self) -> int:
         return self.points.shape[0]
+
+    @property
+    def edges(self) -> np.ndarray:
+        """(E, 2) int64 edges the ``"graph"`` back-end searches along (the triangles' edges unless
+        given), built on first use."""
+        if self._edges is None:
+            self._edges = _graph.mesh_edges(self.triangles)
+        return self._edges
 
     @property
     def graph(self):
@@ -302,6 +298,7 @@ class GeodesicSolver:
                 parts["edge graph"] = 2 * self.edges.shape[0] * 12 + 8 * (n + 1)
             parts["search scratch"] = threads * n * 9
         elif self.backend == "fmm":
+            parts["source rows"] = matrix               # a row per source, then the vertex-major matrix
             if self._marching is None:
                 parts["marching tables"] = marching_mesh_bytes(n, t)
             parts["search scratch"] = threads * search_bytes(n)
@@ -411,17 +408,23 @@ class GeodesicSolver:
         if fallback_note:
             report.notes.append(fallback_note)
             warn(fallback_note)
+        report.setup_seconds, self._setup_unreported = self._setup_unreported, 0.0
         if self.backend == "graph":
             vertex, sources = self._solve_graph(tri, bary, need, report, bound)
         elif self.backend == "fmm":
             vertex, sources = self._solve_fmm(tri, bary, need, report, bound)
         else:
-            vertex, sources = self._solve_field(tri, bary, need, names, report)
+            searched = time.perf_counter()
+            vertex, sources = solve_fields(self, tri, bary, need, names, report)
+            report.search_seconds = time.perf_counter() - searched
             if bound is not None:
                 vertex[vertex > bound] = np.inf
                 sources[sources > bound] = np.inf
         vertex, sources = self._apply_component_policy(vertex, sources, tri, bary, src_comp, report)
         report.seconds = time.perf_counter() - t0
+        log.info("geodesic %s: %d vertices x %d sources in %.3f s: set-up %.3f s, searches %.3f s "
+                 "(%.4f s a source on %d threads)", self.backend, n, s, report.seconds, report.setup_seconds,
+                 report.search_seconds, report.search_seconds / max(s, 1), report.threads)
         self.report = report
         result = GeodesicResult(vertex, sources, report)
         self._last = (key, result)
@@ -429,9 +432,17 @@ class GeodesicSolver:
 
     # -------------------------------------------------------------------------------------------
     def _solve_graph(self, tri, bary, need, report, bound=None):
+        if self._graph is None:
+            started = time.perf_counter()
+            self._graph = _graph.edge_graph(self.points, self.edges)
+            report.setup_seconds += time.perf_counter() - started
+        searched = time.perf_counter()
         vertex, sources, settled = _graph.multi_source_shortest_paths(
-            self.graph, self.points, tri, bary, needed=need, dtype=self.dtype, engine=self.engine,
+            self._graph, self.points, tri, bary, needed=need, dtype=self.dtype, engine=self.engine,
             limit=np.inf if bound is None else bound)
+        report.search_seconds = time.perf_counter() - searched
+        if self.engine != "scipy" and _graph.HAVE_NUMBA:
+            report.threads = max(1, min(_graph._nb.get_num_threads(), tri.shape[0]))
         report.settled_fraction = float(settled.sum()) / float(self.n_points * tri.shape[0])
         if need is not None and (self.engine == "scipy" or not _graph.HAVE_NUMBA):
             report.notes.append("scipy engine: full searches (no bounded search without numba)")
@@ -439,100 +450,20 @@ class GeodesicSolver:
         return vertex, np.ascontiguousarray(sources.T)
 
     def _solve_fmm(self, tri, bary, need, report, bound=None):
-        from .marching import march
+        from .marching import MarchingMesh, march
 
-        mm = self.marching
-        vertex, sources, settled = march(mm, self.points, tri, bary, needed=need, dtype=self.dtype,
+        if self._marching is None:
+            started = time.perf_counter()
+            self._marching = MarchingMesh(self.points, self.triangles)
+            report.setup_seconds += time.perf_counter() - started
+        searched = time.perf_counter()
+        vertex, sources, settled = march(self._marching, self.points, tri, bary, needed=need, dtype=self.dtype,
                                          limit=np.inf if bound is None else bound)
+        report.search_seconds = time.perf_counter() - searched
+        report.threads = max(1, min(_graph._nb.get_num_threads(), tri.shape[0]))
         report.settled_fraction = float(settled.sum()) / float(self.n_points * tri.shape[0])
         # rows = evaluation point, columns = source (see GeodesicResult.sources)
         return vertex, np.ascontiguousarray(sources.T)
-
-    def _solve_field(self, tri, bary, need, names, report):
-        n, s = self.n_points, tri.shape[0]
-        out = np.empty((s, n), dtype=self.dtype)
-        out.fill(np.inf)
-        sources = np.full((s, s), np.inf)
-        src_comp = report.source_components
-        max_shift = 0.0
-        for c in np.unique(src_comp):
-            members = np.flatnonzero(src_comp == c)
-            if self.n_components == 1:
-                verts, local, ctris = np.arange(n), np.arange(n), self.triangles
-            else:
-                verts = np.flatnonzero(self.component_labels == c)
-                local = np.full(n, -1, dtype=np.int64)
-                local[verts] = np.arange(verts.size)
-                ctris = local[self.triangles[self.component_labels[self.triangles[:, 0]] == c]]
-            sp_, st_, sv, moved = _graph.insert_surface_points(
-                self.points[verts], ctris, local[tri[members]], bary[members],
-                names=[names[i] for i in members])
-            max_shift = max(max_shift, float(moved.max()))
-            targets = None
-            if need is not None:
-                targets = np.concatenate([np.flatnonzero(need[verts]), sv])
-            fields = self._component_fields(c, sp_, st_, sv, targets, report)  # (m, n_sub)
-            if verts.size == n:
-                out[members] = fields[:, :n]
-            else:
-                out[np.ix_(members, verts)] = fields[:, :verts.size]
-            sources[np.ix_(members, members)] = fields[:, sv]
-        report.max_source_shift = max_shift
-        # rows = evaluation point, columns = source (see GeodesicResult.sources)
-        sources = sources.T.copy()
-        np.fill_diagonal(sources, 0.0)
-        if self.backend == "exact":
-            bad = ~np.isfinite(out)
-            same = self.component_labels[None, :] == src_comp[:, None]
-            if need is not None:
-                bad &= need[None, :]
-            bad &= same
-            bad_s = ~np.isfinite(sources) & (src_comp[:, None] == src_comp[None, :])
-            n_bad = int(bad.sum()) + int(bad_s.sum())
-            if n_bad:
-                rows = np.flatnonzero(bad.any(axis=1) | bad_s.any(axis=0))
-                gv, gs, _ = _graph.multi_source_shortest_paths(
-                    self.graph, self.points, tri[rows], bary[rows], engine=self.engine)
-                sub = out[rows]
-                sub[bad[rows]] = gv.T[bad[rows]]
-                out[rows] = sub
-                cols = sources[:, rows]
-                cols[bad_s[:, rows]] = gs.T[bad_s[:, rows]]
-                sources[:, rows] = cols
-                report.exact_inf_entries = n_bad
-                msg = (f"exact geodesics: pygeodesic left {n_bad} reachable entries at +inf "
-                       f"(sources {list_names([names[i] for i in rows])}); filled with the graph "
-                       f"(shortest edge path) distance")
-                report.notes.append(msg)
-                warn(msg)
-        return out.T, sources
-
-    def _component_fields(self, c, pts, tris, src_vertices, targets, report) -> np.ndarray:
-        """(len(src_vertices), n_sub) distance fields on one component (possibly split) mesh."""
-        uniq, inv = np.unique(src_vertices, return_inverse=True)
-        if self.backend == "heat":
-            solver, tc = self._heat_solver(c, pts, tris)
-            report.t_coef[int(c)] = tc
-            rows = [np.asarray(solver.compute_distance(int(v)), dtype=np.float64) for v in uniq]
-        else:
-            alg = self._exact_solver(c, pts, tris)
-            rows = []
-            for v in uniq:
-                if targets is None:
-                    d, _ = alg.geodesicDistances(np.array([v], dtype=np.int32), None)
-                    if d is None:
-                        raise ComputeError(f"pygeodesic failed on component {c} (see its printed message)")
-                    rows.append(d)
-                else:
-                    tg = np.unique(targets).astype(np.int32)
-                    d, _ = alg.geodesicDistances(np.array([v], dtype=np.int32), tg)
-                    if d is None:
-                        raise ComputeError(f"pygeodesic failed on component {c} (see its printed message)")
-                    full = np.full(pts.shape[0], np.inf)
-                    full[tg] = d
-                    rows.append(full)
-        fields = np.stack(rows)[inv]
-        return fields
 
     def _cached(self, kind, c, pts, tris, build):
         key = (kind, int(c), pts.shape[0], tris.shape[0], hash(pts.tobytes()), hash(tris.tobytes()))

@@ -22,20 +22,25 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..errors import InputError, OptionError
 from .euclidean import check_matrix_memory, pairwise_euclidean, source_points, validate_sources
 from .geodesic import DistanceReport, GeodesicSolver
+
+if TYPE_CHECKING:  # annotations only: imported where used
+    import scipy.spatial
 
 __all__ = ["HybridResult", "hybrid_distances", "hybrid_weights", "region_mask"]
 
 PAPER_THRESHOLD = 0.6
 
 
-def _tree(points) -> cKDTree:
+def _tree(points) -> scipy.spatial.cKDTree:
+    from scipy.spatial import cKDTree  # here, not at import: only the hybrid method needs it
+
     # sliding-midpoint tree: median splits degrade badly on the lattice-like vertex sets of
     # refined meshes (measured 2.9 s vs 0.5 s for 185k queries at 328k vertices)
     return cKDTree(points, balanced_tree=False, compact_nodes=False)
@@ -164,6 +169,24 @@ class HybridResult:
     seconds: dict = field(default_factory=dict)
 
 
+def _blend(vertex, g, geo_v, wcol) -> None:
+    """``vertex = e + wcol (g - e)`` where ``geo_v``, else ``e`` (the Euclidean ``vertex``), in place,
+    in the geodesic matrix's memory order: column by column for a source-major one (graph), by
+    blocks of rows for a vertex-major one (fmm). Element for element the same arithmetic either way."""
+    if g.flags.c_contiguous and not g.flags.f_contiguous:
+        block = 8192
+        for i0 in range(0, vertex.shape[0], block):
+            rows = slice(i0, i0 + block)
+            e = vertex[rows]
+            gj = np.where(geo_v[rows, None], g[rows], e)
+            vertex[rows] = e + wcol[rows, None] * (gj - e)
+        return
+    for j in range(vertex.shape[1]):
+        e = vertex[:, j]
+        gj = np.where(geo_v, g[:, j], e)
+        vertex[:, j] = e + wcol * (gj - e)
+
+
 def hybrid_distances(solver: GeodesicSolver, source_tri_vertices, source_barycentrics, region_vertices, *,
                      radius: float, sigma: float, threshold: float = PAPER_THRESHOLD,
                      bounded: bool = True, names=None) -> HybridResult:
@@ -218,14 +241,9 @@ def hybrid_distances(solver: GeodesicSolver, source_tri_vertices, source_barycen
         res = solver.solve(tri, bary, names=names, needed=needed if bounded else None)
         report = res.report
         t3 = time.perf_counter()
-        # blend in place, column by column (the geodesic matrix is (S, N)-major); rows with
-        # w <= threshold keep the Euclidean value (their geodesic entries may be +inf: not searched)
-        wcol = np.where(geo_v, w, 0.0).astype(vertex.dtype)
-        g = res.vertex
-        for j in range(vertex.shape[1]):
-            e = vertex[:, j]
-            gj = np.where(geo_v, g[:, j], e)
-            vertex[:, j] = e + wcol * (gj - e)
+        # blend in place; rows with w <= threshold keep the Euclidean value (their geodesic entries
+        # may be +inf: not searched)
+        _blend(vertex, res.vertex, geo_v, np.where(geo_v, w, 0.0).astype(vertex.dtype))
         srows = np.flatnonzero(geo_s)
         wsr = ws[srows, None]
         sources[srows] = wsr * res.sources[srows] + (1.0 - wsr) * sources[srows]
