@@ -71,8 +71,10 @@ def test_stabilisation_plot_measures_what_the_fit_removed(gaps_report):
     stab = next(f for f in figs.values() if f["layout"]["title"]["text"].startswith("Head stabilisation"))
     curves = {t["name"]: np.array([np.nan if v is None else v for v in t["y"]]) for t in stab["data"]}
     before, after = curves["stabilisation markers: before"], curves["stabilisation markers: after"]
-    assert before[0] == pytest.approx(0.0, abs=1e-3) and after[0] == pytest.approx(0.0, abs=1e-3)  # neutral frame
+    # the head-local frame is the rest pose (the still stretch around frame 0): the neutral frame
+    # is near it, not exactly on it as when one frame was the reference
     assert np.nanmax(before) > 1.0 and np.nanmax(after) < 0.3 * np.nanmax(before)
+    assert before[0] < 0.3 and after[0] < 0.3
     held_after = curves["held-out markers: after"]
     assert np.nanmax(held_after) < np.nanmax(curves["held-out markers: before"])
 

@@ -405,7 +405,12 @@ def set_rest_pose(capture: Capture, neutral=None, *, how: str | None = None,
         a, b, threshold = stretch.start, stretch.end, stretch.threshold
     how = how or label
     out = capture.replace(neutral_frame=frame, neutral_window=(a, b))
-    rms, top = rest_mod.residual_motion(capture.positions[a:b], out.neutral)
+    stretch_positions = capture.positions[a:b]
+    if capture.head_motion is None and b - a > 1:
+        # not stabilised: the head's rigid motion is not the face moving (stabilising removes it
+        # from the positions; here it is only left out of the measure)
+        stretch_positions = rest_mod.without_rigid_motion(stretch_positions, out.neutral)
+    rms, top = rest_mod.residual_motion(stretch_positions, out.neutral)
     to_cm = _to_cm(capture.units)
     warnings = []
     if rms * to_cm > warn_cm:

@@ -28,7 +28,8 @@ import numpy as np
 from ..model.rest import HUBER_K, robust_rest_pose
 
 __all__ = ["robust_rest_pose", "frame_deviation", "white_noise_level", "face_size", "still_stretch",
-           "residual_motion", "StillStretch", "HUBER_K", "STILL_SPREADS", "CORE_SECONDS", "FACE_FLOOR"]
+           "residual_motion", "without_rigid_motion", "StillStretch", "HUBER_K", "STILL_SPREADS", "CORE_SECONDS",
+           "FACE_FLOOR"]
 
 #: a frame is still while its deviation from the rest pose stays within this many robust spreads
 #: (1.4826 MAD) of the stretch's own deviations above their median: the usual 3-sigma outlier rule
@@ -71,6 +72,20 @@ def face_size(points) -> float:
     if not len(p):
         return 0.0
     return float(np.sqrt(((p - p.mean(axis=0)) ** 2).sum(axis=1).mean()))
+
+
+def without_rigid_motion(positions, rest) -> np.ndarray:
+    """``positions`` (F, M, 3) with each frame's rigid motion relative to ``rest`` (M, 3) taken
+    out (least-squares fit over the markers valid in both; a frame with fewer than 3 is left as it
+    is): what remains is the face's own motion."""
+    from .rigid import fit_rigid_batch
+
+    p = np.asarray(positions, dtype=np.float64)
+    rot, _, t = fit_rigid_batch(np.asarray(rest, dtype=np.float64), p)
+    fitted = np.isfinite(rot).all(axis=(1, 2))
+    local = np.einsum("fji,fmj->fmi", np.where(fitted[:, None, None], rot, np.eye(3)),
+                      p - np.where(fitted[:, None], t, 0.0)[:, None, :])
+    return local
 
 
 def residual_motion(positions, rest) -> tuple[float, float]:
