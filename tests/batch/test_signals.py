@@ -23,8 +23,9 @@ INPUTS = [SA / "meshes" / "makehuman_hm08_face_cm.obj", SA / "meshes" / "mediapi
 
 
 def _manifest(folder: Path) -> Path:
-    """Four shots of a few seconds each (no cache: each computes its distances)."""
-    text = ["[batch]", 'summary = "out/summary.json"', "[defaults]", "trim = [0, 400]",
+    """Four shots of a few seconds each (no cache: each computes its distances), long enough that a
+    quiet machine cannot finish the batch between seeing a shot at work and the signal landing."""
+    text = ["[batch]", 'summary = "out/summary.json"', "[defaults]", "trim = [0, 900]",
             'output = "out/{mesh}/{capture}"']
     for mesh, layout in (("makehuman_hm08_face_cm", "makehuman_hm08_face"),
                          ("mediapipe_canonical_face_model_holes", "mediapipe_face_holes")):
