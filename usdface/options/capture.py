@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import OptionError
+from ..findings import CHECKS
 from ..units import METERS_PER_UNIT
 from .fields import Options, option
 from .values import boolean, integer, pair, positive_float, positive_int, shown
@@ -64,8 +65,7 @@ class PlausibilityOptions(Options):
     allow: tuple = option((), flag="--allow", coerce=allow_value, nargs="+", metavar="CHECK",
                           group="plausibility checks",
                           help="accept these findings: an error becomes a warning, a warning is silenced; checks: "
-                               "zeros, outliers, far-markers, mixed-units, face-size, speed, stabilize, "
-                               "layout-distance, fit-residual, unit-scale (the README's table)")
+                               f"{', '.join(CHECKS)} (the README's table)")
 
 
 @dataclass(frozen=True)
