@@ -81,7 +81,9 @@ class CaptureOptions(PlausibilityOptions):
                                  help="the source's up axis (default: Z for C3D, Y otherwise)")
     stabilize: Any = option(None, flag="--stabilize", coerce=stabilize_value, metavar="auto|M1,M2,...", nargs="?",
                             const="auto", negate="--no-stabilize", group="capture reading and conditioning",
-                            help="remove rigid head motion: 'auto' picks the most rigid markers, or name them")
+                            help="remove rigid head motion: 'auto' picks the most rigid markers, or name them "
+                                 "(default: none, the capture keeps its head motion; run and solve stabilise with "
+                                 "auto by default: give --stabilize for the same stabilisation)")
     fill_gaps: int | None = option(None, flag="--fill-gaps", coerce=positive_int, metavar="N",
                                    group="capture reading and conditioning", help="fill gaps of at most N frames")
     filter: str | None = option(None, flag="--filter", choices=("butterworth", "savgol"),
