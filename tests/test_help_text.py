@@ -32,3 +32,11 @@ def test_allow_help_lists_every_check_it_accepts():
     for command, text in helps.items():
         listed = text.split("checks: ")[1].split(" (")[0].split(", ")
         assert listed == list(CHECKS), command
+
+
+def test_negated_flags_read_as_sentences():
+    helps = {**_helps("--no-polynomial"), "--no-stabilize": _helps("--no-stabilize")["run"],
+             "--no-cache": _helps("--no-cache")["batch"]}
+    assert {helps[c] for c in ("run", "skel", "transfer")} == {
+        "do not add the polynomial term, not even to the kernels that need it (thin_plate_spline is then refused)"}
+    assert helps["--no-stabilize"] == "do not stabilize" and helps["--no-cache"] == "do not cache"

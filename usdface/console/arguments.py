@@ -55,8 +55,9 @@ def _add_field(target, f) -> None:
         kwargs["type"] = md["cli_type"]
     target.add_argument(md["flag"], **kwargs)
     if md.get("negate"):
+        words = md.get("negate_help") or f"do not {md['flag'][2:].replace('-', ' ')}"
         target.add_argument(md["negate"], dest=f.name, action="store_const", const=md.get("negate_const"),
-                            default=argparse.SUPPRESS, help=f"do not {md['flag'][2:].replace('-', ' ')}")
+                            default=argparse.SUPPRESS, help=plain_help(words))
 
 
 def add_options(parser: argparse.ArgumentParser, cls, *, exclude=(), exclusive=()) -> None:

@@ -65,6 +65,8 @@ class TransferOptions(Options):
                                       "kernels can), then the lambda with the least amplification")
     polynomial: Any = option("auto", flag="--polynomial", coerce=polynomial_value, action="store_const", const=True,
                              negate=("--no-polynomial", False), group="transfer",
+                             negate_help="do not add the polynomial term, not even to the kernels that need it "
+                                         "(thin_plate_spline is then refused)",
                              help="add a linear polynomial term (interpolate mode); by default exactly the kernels "
                                   "that need it get it (multiquadric, thin-plate spline), --no-polynomial turns "
                                   "it off")
