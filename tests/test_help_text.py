@@ -40,3 +40,10 @@ def test_negated_flags_read_as_sentences():
     assert {helps[c] for c in ("run", "skel", "transfer")} == {
         "do not add the polynomial term, not even to the kernels that need it (thin_plate_spline is then refused)"}
     assert helps["--no-stabilize"] == "do not stabilize" and helps["--no-cache"] == "do not cache"
+
+
+def test_a_default_is_shown_once_and_as_it_is_typed():
+    assert _helps("--size")["playblast"] == "movie frame in pixels, even numbers (default: 960x540)"
+    for name, sub in _commands(build_parser()).items():
+        for action in sub._actions:
+            assert (action.help or "").count("(default: ") <= 1, (name, action.option_strings)

@@ -45,7 +45,8 @@ def _add_field(target, f) -> None:
     if action == "store_true":
         target.add_argument(md["flag"], dest=f.name, action="store_true", default=argparse.SUPPRESS, help=plain_help(md["help"]))
         return
-    kwargs = dict(dest=f.name, default=argparse.SUPPRESS, help=plain_help(md["help"] + _default_text(f.default)))
+    shown = "" if "(default: " in md["help"] else _default_text(f.default)  # a help may state it as typed
+    kwargs = dict(dest=f.name, default=argparse.SUPPRESS, help=plain_help(md["help"] + shown))
     if action is not None:
         kwargs["action"] = action
     for key in ("choices", "metavar", "nargs", "const"):
