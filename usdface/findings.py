@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from .errors import OptionError, PlausibilityError
+
+if TYPE_CHECKING:  # numpy only names a field's type: `usdface --help` (which lists CHECKS) stays numpy-free
+    import numpy as np
 
 log = logging.getLogger("usdface")
 

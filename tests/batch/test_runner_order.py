@@ -38,6 +38,11 @@ def test_summary_table_shows_seconds_per_step():
     assert "import-mesh 0.4, bind 0.2, distances 4.0, transfer 7.1" in row and "12.3" in row
     assert "capture x: not a Maya file" in next(l for l in lines if l.startswith("broken"))
     assert step_times(None) == "-" and step_times({"run": None}) == ""
+    assert lines[-2] == "1 ok, 0 skipped, 1 failed in 13.0 s (local, 2 workers)"
+    # --workers 0 runs the shots one after the other in this process: no worker count to show
+    serial = summary_table({**summary, "mode": "serial", "workers": 0})
+    assert serial[-2] == "1 ok, 0 skipped, 1 failed in 13.0 s (serial)"
+    assert summary_table({**summary, "workers": 1})[-2].endswith("(local, 1 worker)")
 
 
 def test_timed_calls_time_the_processors_called_through_the_registry():

@@ -158,8 +158,12 @@ def test_resample_refused_with_a_size_estimate(tmp_path, capsys):
     from usdface.capture.timing import resample
     from usdface.io.captures import read_capture
 
-    with pytest.raises(ResourceError, match=r"26,483,334 frames x 41 markers, which needs about .* of memory but"):
+    with pytest.raises(ResourceError,
+                       match=r"26,483,334 frames x 41 markers, which needs about .* of memory but") as err:
         resample(read_capture(TAKE), rate=1e6, allow={"resample"})
+    # the advice quotes the README's rates (it said "capture rates are 24-1000 Hz")
+    assert str(err.value).endswith("; choose a rate near the capture's 60 Hz (optical capture runs at 60-2000 Hz, "
+                                   "high-speed systems to about 10 kHz, video at 24-240 fps)")
 
 
 def test_second_run_into_a_locked_folder_is_refused(old_shot, tmp_path, capsys):

@@ -193,3 +193,12 @@ def test_installed_package_registers_and_applies_every_schema(tmp_path):
     assert ok == "True" and int(count) == 6
     if "site-packages" not in where:
         pytest.skip(f"usdface imported from {where}, not an installed copy")
+
+
+def test_import_mesh_of_an_unknown_suffix_lists_the_usd_suffixes_it_also_reads(sample_assets, tmp_path, capsys):
+    take = sample_assets / "capture" / "JawMoCap.ma"
+    assert main(["import-mesh", str(take), "-o", str(tmp_path / "m.usdc")]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"usdface import-mesh: error: mesh file {take}: unknown suffix '.ma'; expected one of .obj, .ply, .off, .stl, "
+        ".wrl, .dae, .x3d, .3ds, .ctm, .usd, .usda, .usdc, .usdz"]
+    assert not (tmp_path / "m.usdc").exists()

@@ -47,9 +47,18 @@ def test_refusal_messages():
     with pytest.raises(OptionError) as err:
         check_kernel_method("cubic", "euclidean", polynomial=True)
     assert str(err.value) == (
-        "--kernel cubic with --method euclidean: no usable variant (scale-free with its polynomial, it amplifies "
-        "marker motion about 9x at any width, 1.5x the error of a Gaussian); kernels that work with --method "
-        "euclidean: gaussian, inverse_multiquadric, multiquadric, thin_plate_spline")
+        "--kernel cubic with --method euclidean: no usable variant with any --method (scale-free with its polynomial, "
+        "it amplifies marker motion about 9x at any width, 1.5x the error of a Gaussian); kernels that work with "
+        "--method euclidean: gaussian, inverse_multiquadric, multiquadric, thin_plate_spline")
+    # the cubic works with no method: its geodesic/hybrid refusal must not send the user to Euclidean
+    for method in ("geodesic", "hybrid"):
+        with pytest.raises(OptionError) as err:
+            check_kernel_method("cubic", method, polynomial=True)
+        assert str(err.value) == (
+            f"--kernel cubic with --method {method}: no usable variant with any --method (on {method} distances it "
+            "amplifies marker motion 17x or more, 3-65x the error of a Gaussian; on Euclidean ones, scale-free with its "
+            f"polynomial, about 9x at any width); kernels that work with --method {method}: gaussian, "
+            "inverse_multiquadric")
     with pytest.raises(OptionError) as err:
         check_kernel_method("thin_plate_spline", "euclidean", polynomial=False)
     assert str(err.value) == (

@@ -56,14 +56,14 @@ def test_a_kernel_without_a_sound_variant_on_the_layers_distances_is_refused(lay
 
 
 @pytest.mark.parametrize("argv, line", [
-    (["--kernel", "cubic"], "--kernel cubic with --method hybrid: no well-posed variant (its guarantees hold for "
-                            "Euclidean distances only; on hybrid distances it amplifies marker motion 17x or more, "
-                            "3-65x the error of a Gaussian); kernels that work with --method hybrid: gaussian, "
-                            "inverse_multiquadric"),
+    (["--kernel", "cubic"], "--kernel cubic with --method hybrid: no usable variant with any --method (on hybrid "
+                            "distances it amplifies marker motion 17x or more, 3-65x the error of a Gaussian; on "
+                            "Euclidean ones, scale-free with its polynomial, about 9x at any width); kernels that work "
+                            "with --method hybrid: gaussian, inverse_multiquadric"),
     (["--method", "euclidean", "--kernel", "cubic"],
-     "--kernel cubic with --method euclidean: no usable variant (scale-free with its polynomial, it amplifies marker "
-     "motion about 9x at any width, 1.5x the error of a Gaussian); kernels that work with --method euclidean: "
-     "gaussian, inverse_multiquadric, multiquadric, thin_plate_spline"),
+     "--kernel cubic with --method euclidean: no usable variant with any --method (scale-free with its polynomial, it "
+     "amplifies marker motion about 9x at any width, 1.5x the error of a Gaussian); kernels that work with --method "
+     "euclidean: gaussian, inverse_multiquadric, multiquadric, thin_plate_spline"),
     (["--method", "euclidean", "--kernel", "thin_plate_spline", "--no-polynomial"],
      "--kernel thin_plate_spline with --method euclidean and --no-polynomial: thin_plate_spline is conditionally "
      "positive definite of order 2 and needs its linear polynomial term (drop --no-polynomial); kernels that work "

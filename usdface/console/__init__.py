@@ -140,6 +140,15 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
+def _without_command(message: str, processor) -> str:
+    """``message`` without a leading command name: a processor's error names its command for Python
+    callers ("run: give exactly one of ..."), the command line already did (``usdface run: error:``)."""
+    for prefix in (processor.name, processor.path[0]):
+        if message.startswith(prefix + ": "):
+            return message[len(prefix) + 2:]
+    return message
+
+
 def _run(args, processor, name: str, parser) -> int:
     """The command, its errors as one line and an exit code, its Result printed."""
     try:
@@ -147,7 +156,7 @@ def _run(args, processor, name: str, parser) -> int:
             refuse_outputs_over_inputs(args, processor, parser)
             result = run_command(processor, args)
     except UsdFaceError as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {_without_command(str(exc), processor)}", file=sys.stderr)
         return exc.exit_code
     except Interrupted as exc:
         print(f"{name}: stopped by {exc}; partial work removed", file=sys.stderr)

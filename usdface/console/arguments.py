@@ -45,7 +45,8 @@ def _add_field(target, f) -> None:
     if action == "store_true":
         target.add_argument(md["flag"], dest=f.name, action="store_true", default=argparse.SUPPRESS, help=plain_help(md["help"]))
         return
-    kwargs = dict(dest=f.name, default=argparse.SUPPRESS, help=plain_help(md["help"] + _default_text(f.default)))
+    shown = "" if "(default: " in md["help"] else _default_text(f.default)  # a help may state it as typed
+    kwargs = dict(dest=f.name, default=argparse.SUPPRESS, help=plain_help(md["help"] + shown))
     if action is not None:
         kwargs["action"] = action
     for key in ("choices", "metavar", "nargs", "const"):
@@ -55,8 +56,9 @@ def _add_field(target, f) -> None:
         kwargs["type"] = md["cli_type"]
     target.add_argument(md["flag"], **kwargs)
     if md.get("negate"):
+        words = md.get("negate_help") or f"do not {md['flag'][2:].replace('-', ' ')}"
         target.add_argument(md["negate"], dest=f.name, action="store_const", const=md.get("negate_const"),
-                            default=argparse.SUPPRESS, help=f"do not {md['flag'][2:].replace('-', ' ')}")
+                            default=argparse.SUPPRESS, help=plain_help(words))
 
 
 def add_options(parser: argparse.ArgumentParser, cls, *, exclude=(), exclusive=()) -> None:

@@ -62,7 +62,8 @@ _UNIT_WORDS = {
 _UNITS_COMMENT = re.compile(r"^\s*(?:#|comment)\s*units?\s*[:=]\s*([A-Za-z]+)", re.IGNORECASE)
 
 
-def read_mesh(path, *, units: str | None = None, check_degenerate: bool = True) -> FaceMesh:
+def read_mesh(path, *, units: str | None = None, check_degenerate: bool = True,
+              other_suffixes: tuple = ()) -> FaceMesh:
     """Read a polygon mesh file, keeping vertex order, polygons and UVs.
 
     Parameters
@@ -74,6 +75,9 @@ def read_mesh(path, *, units: str | None = None, check_degenerate: bool = True) 
         ``Units:`` comment in the file if there is one, else :data:`DEFAULT_UNITS` (``"cm"``).
     check_degenerate : bool
         Raise on polygons of zero area (default True).
+    other_suffixes : tuple of str
+        Suffixes the caller reads itself (USD layers: :func:`usdface.usd.inputs.load_mesh`), listed
+        after :data:`MESH_SUFFIXES` in the unknown-suffix message.
 
     Returns
     -------
@@ -100,9 +104,8 @@ def read_mesh(path, *, units: str | None = None, check_degenerate: bool = True) 
     check_input_file(path, label=label)
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
-        raise InputError(
-            f"mesh file {path}: unknown suffix {path.suffix or '(none)'!r}; expected one of {', '.join(MESH_SUFFIXES)}"
-        )
+        known = ", ".join(MESH_SUFFIXES + tuple(other_suffixes))
+        raise InputError(f"mesh file {path}: unknown suffix {path.suffix or '(none)'!r}; expected one of {known}")
     if suffix == ".obj":
         data = _read_obj(path, units_given=units is not None)
     elif suffix == ".off" and _is_ascii_off(path):

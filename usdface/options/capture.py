@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import OptionError
+from ..findings import CHECKS
 from ..units import METERS_PER_UNIT
 from .fields import Options, option
 from .values import boolean, integer, pair, positive_float, positive_int, shown
@@ -64,8 +65,7 @@ class PlausibilityOptions(Options):
     allow: tuple = option((), flag="--allow", coerce=allow_value, nargs="+", metavar="CHECK",
                           group="plausibility checks",
                           help="accept these findings: an error becomes a warning, a warning is silenced; checks: "
-                               "zeros, outliers, far-markers, mixed-units, face-size, speed, stabilize, "
-                               "layout-distance, fit-residual, unit-scale (the README's table)")
+                               f"{', '.join(CHECKS)} (the README's table)")
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,9 @@ class CaptureOptions(PlausibilityOptions):
                                  help="the source's up axis (default: Z for C3D, Y otherwise)")
     stabilize: Any = option(None, flag="--stabilize", coerce=stabilize_value, metavar="auto|M1,M2,...", nargs="?",
                             const="auto", negate="--no-stabilize", group="capture reading and conditioning",
-                            help="remove rigid head motion: 'auto' picks the most rigid markers, or name them")
+                            help="remove rigid head motion: 'auto' picks the most rigid markers, or name them "
+                                 "(default: none, the capture keeps its head motion; run and solve stabilise with "
+                                 "auto by default: give --stabilize for the same stabilisation)")
     fill_gaps: int | None = option(None, flag="--fill-gaps", coerce=positive_int, metavar="N",
                                    group="capture reading and conditioning", help="fill gaps of at most N frames")
     filter: str | None = option(None, flag="--filter", choices=("butterworth", "savgol"),

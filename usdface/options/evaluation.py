@@ -42,15 +42,15 @@ class EvaluateOptions(Options):
     modes: tuple | None = option(None, flag="--modes", coerce=names_value, nargs="+", metavar="MODE",
                                  group="transfers", help="paper interpolate (default: both)")
     pins: tuple | None = option(None, flag="--pins", coerce=names_value, nargs="+", metavar="PIN", group="transfers",
-                                help="pinned border variants for interpolate mode: border (whole outer border, the "
-                                     "pipeline default), none, upper (border above the mouth corners); default: all "
-                                     "three")
+                                help="pinned border variants for interpolate mode: border (whole outer border), "
+                                     "none, upper (border above the mouth corners, the pipeline default); default: "
+                                     "all three")
     widths: tuple | None = option(None, flag="--widths", coerce=names_value, nargs="+", metavar="W",
                                   group="transfers",
                                   help="kernel widths: 'default' (the pipeline's rule: per marker, 0.7 x its mean "
                                        "distance to its 3 nearest markers in the row's metric; 1.1 x the Euclidean "
                                        "median marker spacing in paper mode), '1.1h' (that paper rule in every mode, "
-                                       "usdface 0.2's default) and/or cm values; default: default 2")
+                                       "usdface 0.2's default) and/or cm values; default: 'default' and 2 cm")
     backend: str | None = option(None, flag="--backend", choices=("graph", "fmm", "heat", "exact"), group="transfers",
                                  help="geodesic back-end (default: the pipeline's, fmm; graph for paper-mode rows)")
     heat: bool = option(False, flag="--heat", coerce=boolean, group="transfers",

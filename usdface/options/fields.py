@@ -22,12 +22,13 @@ __all__ = ["option", "Options", "NoOptions", "option_fields", "flag_of", "defaul
 
 
 def option(default, *, flag: str, help: str, group: str, coerce: Callable | None = None,
-           choices: tuple | None = None, negate=None, **cli) -> Any:
+           choices: tuple | None = None, negate=None, negate_help: str | None = None, **cli) -> Any:
     """A dataclass field that is a usdface option (see the module docstring).
 
     ``flag``: the long command-line flag; ``coerce(value, flag)``: checks and converts a value
     (:mod:`usdface.options.values`; ``choices`` alone makes one); ``negate``: a second flag that
-    sets the value to None (``"--no-stabilize"``), or ``(flag, value)`` (``("--no-cache", False)``).
+    sets the value to None (``"--no-stabilize"``), or ``(flag, value)`` (``("--no-cache", False)``);
+    ``negate_help``: that flag's help where "do not <flag's words>" does not read as a sentence.
     Booleans: a field defaulting to False is set by ``flag``, one defaulting to True is cleared by
     ``--no-<name>`` (give that as ``flag``).
 
@@ -45,6 +46,7 @@ def option(default, *, flag: str, help: str, group: str, coerce: Callable | None
     return field(default=default, metadata={
         "flag": flag, "help": help, "coerce": coerce, "group": group, "choices": choices,
         "metavar": cli.get("metavar"), "nargs": cli.get("nargs"), "negate": negate_flag, "negate_const": negate_const,
+        "negate_help": negate_help,
         "const": cli.get("const"), "action": cli.get("action"), "cli_type": cli.get("type")})
 
 

@@ -57,7 +57,7 @@ class PlayblastOptions(Options):
     frame_range: tuple | None = option(None, flag="--range", coerce=frame_range_value, nargs=2, metavar=("FIRST", "LAST"),
                                        group="frames", help="time codes to play, inclusive (default: the whole shot)")
     size: tuple = option((960, 540), flag="--size", coerce=movie_size_value, metavar="WxH", group="frames",
-                         help="movie frame in pixels, even numbers")
+                         help="movie frame in pixels, even numbers (default: 960x540)")
     view: str = option("front", flag="--view", choices=VIEWS, group="look", help="camera (the list preview shares)")
     turntable_period: float = option(6.0, flag="--turntable-period", coerce=positive_float, metavar="SECONDS",
                                      group="look", help="--view turntable: seconds per swing")

@@ -49,7 +49,10 @@ class TransferOptions(Options):
 
     rbf: str = option("interpolate", flag="--rbf", choices=("paper", "interpolate"), group="transfer",
                       help="paper: Eqs. 1-5 as published; interpolate: exact RBF solve")
-    kernel: str = option("gaussian", flag="--kernel", choices=KERNEL_NAMES, group="transfer", help="radial basis function")
+    kernel: str = option("gaussian", flag="--kernel", choices=KERNEL_NAMES, group="transfer",
+                         help="radial basis function (interpolate mode: gaussian and inverse_multiquadric with every "
+                              "--method, multiquadric and thin_plate_spline with euclidean; cubic is refused with "
+                              "every --method; paper mode: gaussian and inverse_multiquadric)")
     stiffness: Any = option(None, flag="--stiffness", coerce=stiffness_value, metavar="WIDTH|JSON", group="transfer",
                             help="kernel width in mesh units for every marker, or a JSON file {marker: width} "
                                  "(default: per marker, 0.7 x its mean distance to its 3 nearest markers in the "
@@ -62,6 +65,8 @@ class TransferOptions(Options):
                                       "kernels can), then the lambda with the least amplification")
     polynomial: Any = option("auto", flag="--polynomial", coerce=polynomial_value, action="store_const", const=True,
                              negate=("--no-polynomial", False), group="transfer",
+                             negate_help="do not add the polynomial term, not even to the kernels that need it "
+                                         "(thin_plate_spline is then refused)",
                              help="add a linear polynomial term (interpolate mode); by default exactly the kernels "
                                   "that need it get it (multiquadric, thin-plate spline), --no-polynomial turns "
                                   "it off")

@@ -131,6 +131,7 @@ def batch_report(summary, output=None, *, options: ReportOptions | None = None) 
         (``playblast_size``, ``workers``) in ``<report>_media/``, unless ``no_playblast``.
     """
     from ..report.html import Page, plotly_js
+    from .batch.runner import scheduling_text
 
     started = time.perf_counter()
     summary = _batch_summary(summary)
@@ -143,7 +144,7 @@ def batch_report(summary, output=None, *, options: ReportOptions | None = None) 
     counts = summary.get("counts", {})
     page = Page("usdface batch report", f"{summary.get('manifest', '')}: " + ", ".join(
         f"{v} {k}" for k, v in counts.items() if v) + f" in {summary.get('seconds', 0):.1f} s "
-        f"({summary.get('mode', '')}, {summary.get('workers', '')} worker(s))")
+        f"({scheduling_text(summary.get('mode'), summary.get('workers'))})")
     media = None
     try:
         rows, sections = _batch_table(page, summary, out)

@@ -11,6 +11,7 @@ completes), and OUTDIR is locked while a run writes it.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import time
 from dataclasses import dataclass, field
@@ -20,9 +21,11 @@ from .. import registry
 from ..errors import OptionError, UsdFaceError
 from ..fileutil import environment_fault, is_environment_fault
 from ..io.video import is_video
-from ..options import (DELIVERABLES, BindOptions, CaptureOptions, ImportMeshOptions, LiftOptions, RunOptions,
-                       TrackOptions)
+from ..options import (DELIVERABLES, BindOptions, BlendshapeOptions, CaptureOptions, ImportMeshOptions, LiftOptions,
+                       RunOptions, TrackOptions, option_fields)
 from ..registry import Result
+
+log = logging.getLogger("usdface")
 
 __all__ = ["run", "output_files", "shot_stages", "run_provenance", "step_order"]
 
@@ -104,11 +107,25 @@ def _check(mesh, capture, out_dir, o: RunOptions) -> _Job:
     parse_stiffness(o.stiffness)  # a bad --stiffness fails now, not after the distances
     if "blendshapes" in o.output_kind:
         _check_rig(mesh, o)  # before any work
+    else:
+        _warn_blendshape_options_unused(o)
     stiffness_file = o.stiffness if isinstance(o.stiffness, str) and Path(o.stiffness).is_file() else None
     inputs = {"--mesh": mesh, "--capture": capture, "--layout": o.layout, "--seeds": o.seeds,
               "--stiffness": stiffness_file, "--shapes": o.shapes}
     return _Job(mesh=mesh, capture=capture, out=out, options=o, video=video, track_auto=track_auto,
                 files=output_files(o.output_kind, video=video, options=o), inputs=inputs)
+
+
+def _warn_blendshape_options_unused(o: RunOptions) -> None:
+    """One warning naming the blend-shape options given without the blendshapes deliverable, which
+    alone reads them (usdface 0.2 accepted them, so they are not an error)."""
+    only_blendshapes = {f.name for f in option_fields(BlendshapeOptions)} | {"livelink"}
+    given = [f.metadata["flag"] for f in option_fields(RunOptions)
+             if f.name in only_blendshapes and getattr(o, f.name) != f.default]
+    if given:
+        kinds = ",".join((*o.output_kind, "blendshapes"))
+        log.warning("%s: only the blendshapes deliverable uses %s; ignored (add it: --output-kind %s)",
+                    ", ".join(given), "it" if len(given) == 1 else "them", kinds)
 
 
 def _check_rig(mesh, o: RunOptions) -> None:
@@ -290,8 +307,11 @@ def _text(summary: dict, job: _Job) -> list[str]:
         f"{steps['distances']['seconds']:.2f} s",
     ]
     if tr:
+        from ..rbf.stiffness import width_source
+
         lines.append(f"  transfer: {tr['mode']} {tr['kernel']}, {tr['seconds']:.2f} s"
-                     + (f", width {tr['widthMedian']:.3g} {tr['units']}" if "widthMedian" in tr else ""))
+                     + (f", width {tr['widthMedian']:.3g} {tr['units']} ({width_source(o.stiffness, tr['widthRule'])})"
+                        if "widthMedian" in tr else ""))
     if bs:
         lines.append(f"  blend shapes: {bs['shapes']} shapes, marker residual mean {_cm(bs['residualMean'], units)} "
                      f"(a still face: {_cm(bs['stillResidualMean'], units)}), curves at {bs['shotStage']['rate']:g} fps")

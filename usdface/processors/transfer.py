@@ -20,9 +20,6 @@ CHUNK_BYTES = 128 << 20
 #: output buffers cycled by the transfer: the chunk being written, the one computed ahead
 #: (write_animation_layer's prefetch) and the next (fresh arrays per chunk cost their page faults)
 PREFETCH_BUFFERS = 3
-#: how the printed line names the default width rules (:mod:`usdface.rbf.stiffness`)
-_WIDTH_RULES = {"local": "median of the per-marker widths", "paper": "1.1 x the median marker spacing",
-                "uniform": "one width for every centre"}
 
 
 def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: TransferOptions, output) -> Result:
@@ -35,6 +32,7 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
     """
     from ..capture.retarget import marker_displacements, mesh_head_motion
     from ..rbf.fitting import fit_transfer
+    from ..rbf.stiffness import width_source
     from ..usd.analysis_layer import write_animation_layer
     from ..usd.identity import capture_record, identity, markers_record, mesh_record
     from ..usd.inputs import load_transfer_inputs
@@ -97,15 +95,8 @@ def transfer(mesh_path, capture_path, binding_path, analysis_path, *, options: T
     text = [
         f"wrote {out}: {capture.n_frames} frames x {mesh.n_points} points ({rbf} {solver.kernel}"
         f"{' + linear polynomial' if info['polynomial'] else ''} on {dm.method} distances, width "
-        f"{summary['widthMedian']:.3g} {mesh.units} ({_width_rule(stiffness, info['widthRule'])}){cond}) "
+        f"{summary['widthMedian']:.3g} {mesh.units} ({width_source(stiffness, info['widthRule'])}){cond}) "
         f"in {seconds:.2f} s",
     ] + ([f"  {invalid_frames} frames re-solved with their valid markers"] if invalid_frames else []) \
       + ([f"  advice: {advice}"] if advice else [])
     return Result(layers={"output": out}, summary=summary, text=text)
-
-
-def _width_rule(stiffness, rule: str) -> str:
-    """Where the printed width comes from: --stiffness, or the default rule's name."""
-    if stiffness is not None and not isinstance(stiffness, dict):
-        return "--stiffness"
-    return _WIDTH_RULES.get(rule, rule) + (" and --stiffness" if stiffness is not None else "")

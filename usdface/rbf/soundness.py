@@ -42,7 +42,9 @@ Policy (:data:`SOUND_KERNELS`): on Euclidean distances gaussian, inverse multiqu
 and thin-plate spline, the last two with their polynomial (thin-plate spline needs it; the
 multiquadric's plain matrix is also non-singular, so ``--no-polynomial`` stays allowed for it); on
 geodesic and hybrid distances gaussian and inverse multiquadric only; in paper mode (Eqs. 1-5, no
-solve) the decaying kernels only, on any distance.
+solve) the decaying kernels only, on any distance. The cubic thus works with no method (it stays a
+``--kernel`` choice so that 0.2's command lines parse); its refusal says so instead of pointing to
+another method.
 """
 from __future__ import annotations
 
@@ -160,9 +162,12 @@ def check_kernel_method(kernel: str, method: str, *, polynomial: bool, mode: str
         raise OptionError(f"--kernel {name} with --method {method}{where} and --no-polynomial: {name} is "
                           f"conditionally positive definite of order {CPD_ORDER[name]} and needs its linear polynomial "
                           f"term (drop --no-polynomial); {works} without it: {', '.join(ok)}")
-    if method == "euclidean":  # the cubic: see the module docstring
-        raise OptionError(f"--kernel {name} with --method {method}: no usable variant (scale-free with its polynomial, it "
-                          f"amplifies marker motion about 9x at any width, 1.5x the error of a Gaussian); "
+    if not any(name in kernels for kernels in SOUND_KERNELS.values()):  # the cubic: see the module docstring
+        why = ("scale-free with its polynomial, it amplifies marker motion about 9x at any width, 1.5x the error of "
+               "a Gaussian" if method == "euclidean" else
+               f"on {method} distances it amplifies marker motion 17x or more, 3-65x the error of a Gaussian; on "
+               "Euclidean ones, scale-free with its polynomial, about 9x at any width")
+        raise OptionError(f"--kernel {name} with --method {method}{where}: no usable variant with any --method ({why}); "
                           f"{works}: {', '.join(ok)}")
     raise OptionError(f"--kernel {name} with --method {method}{where}: no well-posed variant (its guarantees hold for "
                       f"Euclidean distances only; on {method} distances it amplifies marker motion 17x or more, 3-65x the "

@@ -82,6 +82,8 @@ __all__ = [
     "resolve_widths",
     "transfer_widths",
     "default_width_rule",
+    "WIDTH_RULE_WORDS",
+    "width_source",
 ]
 
 #: paper-mode (and former) kernel width as a multiple of the median Euclidean nearest-marker distance
@@ -261,6 +263,27 @@ GROWING_WIDTH_RULES = {
     "thin_plate_spline": WidthRule(1.0, 1, per_marker=False, name="uniform"),
     "cubic": WidthRule(1.0, 1, per_marker=False, name="uniform"),
 }
+
+
+#: how a printed line names where the width it shows comes from, per rule name
+WIDTH_RULE_WORDS = {"local": "median of the per-marker widths", "paper": "1.1 x the median marker spacing",
+                    "uniform": "one width for every centre"}
+
+
+def width_source(stiffness, rule: str) -> str:
+    """Where a printed (median) width comes from: ``--stiffness``, or the default rule's words.
+
+    Parameters
+    ----------
+    stiffness : None, float or dict
+        The transfer's ``stiffness`` option (:func:`parse_stiffness`): None for the default rule, one
+        width for every marker, or {marker: width} for some (the rule gives the others).
+    rule : str
+        The rule's name (:attr:`WidthRule.name`).
+    """
+    if stiffness is not None and not isinstance(stiffness, dict):
+        return "--stiffness"
+    return WIDTH_RULE_WORDS.get(rule, rule) + (" and --stiffness" if stiffness is not None else "")
 
 
 def default_width_rule(kernel: str = "gaussian", mode: str = "interpolate") -> WidthRule:

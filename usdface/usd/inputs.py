@@ -32,7 +32,7 @@ def load_mesh(path, *, units=None) -> tuple[FaceMesh, list]:
         return mesh, regions
     from ..io.meshes import read_mesh
 
-    return read_mesh(path, units=units), []
+    return read_mesh(path, units=units, other_suffixes=USD_SUFFIXES), []
 
 
 def load_capture(path, *, units=None, rate=None, up_axis=None, keep_zeros=False, allow=()) -> Capture:

@@ -191,10 +191,17 @@ def summary_table(summary: dict) -> list[str]:
     cache_txt = "; ".join(f"{k}: {v.get('hit', 0)} hit(s), {v.get('miss', 0)} computed" for k, v in cc.items())
     lines.append(f"{n['ok']} ok, {n['skipped']} skipped, {n['failed']} failed"
                  + (f", {n['unsupported']} unsupported" if n["unsupported"] else "")
-                 + f" in {summary['seconds']:.1f} s ({summary['mode']}, {summary['workers']} worker(s))"
+                 + f" in {summary['seconds']:.1f} s ({scheduling_text(summary.get('mode'), summary.get('workers'))})"
                  + (f"; cache {cache_txt}" if cache_txt else ""))
     lines.append(f"summary: {summary['summaryFile']}")
     return lines
+
+
+def scheduling_text(mode, workers) -> str:
+    """How a batch ran, for a summary line: ``serial``, or ``local, 2 workers``."""
+    if mode == "serial" or workers in (None, ""):
+        return str(mode or "")
+    return f"{mode}, {workers} worker{'' if workers == 1 else 's'}"
 
 
 def _error_line(rec: dict) -> str:
