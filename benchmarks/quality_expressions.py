@@ -45,7 +45,7 @@ sys.path.insert(0, str(REPO))
 
 from usdface.evaluation.quality import (  # noqa: E402
     AUTHORS_WIDTH_CM, REGION_NAMES, TransferConfig, TransferSetup, evaluate, format_claim_table,
-    format_overshoot_table, format_shape_table, format_summary_table, select_shapes, summary_rows)
+    format_overshoot_table, format_shape_table, format_summary_table, report_summary, select_shapes, summary_rows)
 from usdface.io.meshes import read_mesh  # noqa: E402
 from usdface.mesh.layout import read_layout  # noqa: E402
 from usdface.mesh.topology import edge_topology, find_hole_regions  # noqa: E402
@@ -340,7 +340,7 @@ def run(args) -> dict:
     section("9. Toward a default")
     md(recommendation(report))
     print(f"\nTotal {time.perf_counter() - t0:.1f} s.")
-    return report.to_dict()
+    return report_summary(report)
 
 
 def main(argv=None) -> int:

@@ -14,6 +14,7 @@ from scipy.spatial.distance import cdist
 
 from usdface.errors import InputError, OptionError
 from usdface.evaluation.quality import (REGION_NAMES, TransferConfig, TransferSetup, claim_numbers, evaluate,
+                                        report_summary,
                                         format_report, loop_rims, marker_displacements, parse_configs,
                                         select_shapes, shape_errors, summary_rows)
 from usdface.io.meshes import read_mesh
@@ -333,7 +334,7 @@ def test_summary_rows_and_report(report):
     assert r["minEigenvalue"] > 0
     text = "\n".join(format_report(report))
     assert "| hybrid/graph | interpolate | gauss 2 cm | none |" in text
-    d = report.to_dict()
+    d = report_summary(report)
     assert d["shapes"] == list(SHAPES) and len(d["configs"]) == len(report.results)
     sub = report.subset(["jawOpen"])
     assert sub.results[0].mean_error.shape == (1, len(REGION_NAMES))
@@ -343,7 +344,7 @@ def test_report_gives_the_whole_set_figures(report):
     """The JSON and the markdown carry issue 19's mesh error and jaw-drop mouth error per row,
     from plain sums over the per-shape face errors."""
     face = REGION_NAMES.index("face")
-    d = {c["label"]: c for c in report.to_dict()["configs"]}
+    d = {c["label"]: c for c in report_summary(report)["configs"]}
     text = "\n".join(format_report(report))
     assert "### Whole-set figures" in text
     for res in report.results:

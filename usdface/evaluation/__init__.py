@@ -31,6 +31,7 @@ from .quality import (
     parse_configs,
     select_shapes,
     shape_errors,
+    report_summary,
     summary_rows,
 )
 
@@ -57,5 +58,6 @@ __all__ = [
     "read_split",
     "select_shapes",
     "shape_errors",
+    "report_summary",
     "summary_rows",
 ]

@@ -20,13 +20,16 @@ from __future__ import annotations
 import fnmatch
 import json
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError, OptionError, list_names
 from .configs import REGION_NAMES
-from .results import ConfigResult, QualityReport
+
+if TYPE_CHECKING:  # annotations only: results' summaries use these figures
+    from .results import ConfigResult, QualityReport
 
 __all__ = ["MESH_ERROR_MIN_MEAN_CM", "JAW_DROP_SHAPE", "HeldOutSplit", "read_split", "mesh_error",
            "jaw_drop_mouth_error"]

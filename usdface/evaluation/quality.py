@@ -80,7 +80,7 @@ from .regions import EvaluationRegions, evaluation_regions, loop_rims, pinned_ve
 from .results import ConfigResult, QualityReport, shape_errors
 from .setup import TransferSetup
 from .tables import (claim_numbers, format_claim_table, format_overshoot_table, format_report, format_shape_table,
-                     format_summary_table, summary_rows)
+                     format_summary_table, report_summary, summary_rows)
 
 __all__ = [
     "MIN_SHAPE_DISPLACEMENT_CM",
@@ -107,6 +107,7 @@ __all__ = [
     "shape_errors",
     "evaluate",
     "summary_rows",
+    "report_summary",
     "claim_numbers",
     "format_summary_table",
     "format_claim_table",

@@ -139,31 +139,4 @@ class QualityReport:
         arr = res.mean_error if which == "mean" else res.max_error
         return 100.0 * arr[:, REGION_NAMES.index(region)] / self.truth_mean
 
-    def to_dict(self) -> dict:
-        """JSON-ready summary (per config: per-shape numbers and aggregates)."""
-        from .metrics import jaw_drop_mouth_error, mesh_error
-        from .tables import claim_numbers, summary_rows
 
-        out = {"settings": self.settings, "shapes": list(self.shape_names), "skipped": dict(self.skipped),
-               "regionVertices": self.regions.counts(),
-               "truthMeanCm": _r(self.truth_mean), "truthMaxCm": _r(self.truth_max), "markerMaxCm": _r(self.marker_max),
-               "summary": summary_rows(self), "claim": claim_numbers(self), "configs": []}
-        for res in self.results:
-            c = res.config
-            out["configs"].append({
-                "label": c.label, "method": c.method, "backend": c.backend if c.method != "euclidean" else None,
-                "mode": c.mode, "kernel": c.kernel, "widthCm": res.width_cm, "widthRule": c.width_cm is None,
-                "polynomial": c.polynomial, "pin": c.pin_label, "constraints": res.n_constraints,
-                "conditionNumber": res.condition_number, "minEigenvalue": res.min_eigenvalue,
-                "meanErrorCm": {rn: _r(res.mean_error[:, i]) for i, rn in enumerate(REGION_NAMES)},
-                "maxErrorCm": {rn: _r(res.max_error[:, i]) for i, rn in enumerate(REGION_NAMES)},
-                "predictedMaxCm": _r(res.predicted_max), "stillMotionCm": _r(res.still_motion),
-                "meshErrorPct": _r([mesh_error(self, res)], 4)[0],
-                "meshErrorAllShapesPct": _r([mesh_error(self, res, min_mean_cm=0.0)], 4)[0],
-                "jawDropMouthErrorCm": _r([jaw_drop_mouth_error(self, res)])[0],
-            })
-        return out
-
-
-def _r(a, nd=5):
-    return [None if not np.isfinite(v) else round(float(v), nd) for v in np.asarray(a).ravel()]

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from .configs import REGION_NAMES, TABLE_REGIONS
+from .metrics import jaw_drop_mouth_error, mesh_error
 from .results import ConfigResult, QualityReport
 
 __all__ = ["summary_rows", "CLAIM_CASES", "claim_numbers", "format_summary_table", "format_claim_table",
@@ -230,3 +231,32 @@ def format_report(report: QualityReport, *, shape_configs=None) -> list[str]:
     if shape_configs is not None:
         lines += ["", "### Per shape (face mean error)", "", *format_shape_table(report, shape_configs)]
     return lines
+
+
+def report_summary(report: QualityReport) -> dict:
+    """JSON-ready summary of ``report`` (per config: per-shape numbers and aggregates): what
+    ``usdface evaluate --json`` prints."""
+    out = {"settings": report.settings, "shapes": list(report.shape_names), "skipped": dict(report.skipped),
+           "regionVertices": report.regions.counts(),
+           "truthMeanCm": _r(report.truth_mean), "truthMaxCm": _r(report.truth_max),
+           "markerMaxCm": _r(report.marker_max),
+           "summary": summary_rows(report), "claim": claim_numbers(report), "configs": []}
+    for res in report.results:
+        c = res.config
+        out["configs"].append({
+            "label": c.label, "method": c.method, "backend": c.backend if c.method != "euclidean" else None,
+            "mode": c.mode, "kernel": c.kernel, "widthCm": res.width_cm, "widthRule": c.width_cm is None,
+            "polynomial": c.polynomial, "pin": c.pin_label, "constraints": res.n_constraints,
+            "conditionNumber": res.condition_number, "minEigenvalue": res.min_eigenvalue,
+            "meanErrorCm": {rn: _r(res.mean_error[:, i]) for i, rn in enumerate(REGION_NAMES)},
+            "maxErrorCm": {rn: _r(res.max_error[:, i]) for i, rn in enumerate(REGION_NAMES)},
+            "predictedMaxCm": _r(res.predicted_max), "stillMotionCm": _r(res.still_motion),
+            "meshErrorPct": _r([mesh_error(report, res)], 4)[0],
+            "meshErrorAllShapesPct": _r([mesh_error(report, res, min_mean_cm=0.0)], 4)[0],
+            "jawDropMouthErrorCm": _r([jaw_drop_mouth_error(report, res)])[0],
+        })
+    return out
+
+
+def _r(a, nd=5):
+    return [None if not np.isfinite(v) else round(float(v), nd) for v in np.asarray(a).ravel()]

@@ -30,7 +30,8 @@ def evaluate(mesh_path, shapes_path, *, options: EvaluateOptions, output=None) -
     of ``options.layout`` (a marker layout JSON) and ``options.binding`` (a binding layer) places
     the markers.
     """
-    from ..evaluation.quality import TransferSetup, evaluate as evaluate_quality, format_report, select_shapes
+    from ..evaluation.quality import (TransferSetup, evaluate as evaluate_quality, format_report, report_summary,
+                                      select_shapes)
     from ..units import scale_between
 
     if (options.layout is None) == (options.binding is None):
@@ -51,7 +52,7 @@ def evaluate(mesh_path, shapes_path, *, options: EvaluateOptions, output=None) -
                           hybrid_threshold=options.threshold)
     report = evaluate_quality(mesh, regions, binding, keep, d, configs=configs, skipped=skipped, setup=setup)
     lines = format_report(report, shape_configs=None if options.no_per_shape else _per_shape_configs(configs))
-    summary = report.to_dict()
+    summary = report_summary(report)
     summary.update({"mesh": describe(mesh_path), "shapesFile": str(shapes_path),
                     "layout": None if options.layout is None else str(options.layout),
                     "binding": None if options.binding is None else str(options.binding)})

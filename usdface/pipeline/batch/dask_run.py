@@ -13,7 +13,7 @@ from concurrent.futures import CancelledError
 from ...errors import EnvironmentFault
 from . import cluster
 from .manifest import Shot
-from .shot import execute_shot, with_manifest_line
+from .shot import execute_shot, shot_cost, with_manifest_line
 
 log = logging.getLogger("usdface")
 
@@ -94,7 +94,6 @@ class _DaskBatch:
         whose futures were lost with the scheduler (a shot done then runs again)."""
         from distributed import as_completed
 
-        from .runner import shot_cost
 
         ordered = sorted(shots, key=shot_cost, reverse=True)
         pending = as_completed([self._submit(shot, len(ordered) - rank) for rank, shot in enumerate(ordered)],

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import sys
 import time
 from pathlib import Path
@@ -23,7 +22,7 @@ from ...errors import OptionError
 from ...options import BatchOptions
 from .cluster import probe_scheduler
 from .manifest import Manifest, Shot
-from .shot import execute_shot, shot_is_current, with_manifest_line
+from .shot import execute_shot, shot_cost, shot_is_current, with_manifest_line  # noqa: F401 (shot_cost re-exported)
 
 log = logging.getLogger("usdface")
 
@@ -119,24 +118,6 @@ def run_batch(manifest: Manifest, options: BatchOptions = BatchOptions(), *, sum
     summary["_text"] = summary_table(summary)
     summary["_exit"] = 1 if counts["failed"] or counts["unsupported"] else 0
     return summary
-
-
-def shot_cost(shot: Shot) -> float:
-    """A relative estimate of a shot's run time, to hand out the longest shots first.
-
-    Writing the time-sampled points dominates a shot: its cost grows with vertices x frames. The
-    mesh file's size stands for the vertex count and the trimmed frame count (or the capture
-    file's size) for the frames; only the order matters.
-    """
-    def size(path) -> float:
-        try:
-            return float(os.path.getsize(path))
-        except (OSError, TypeError):
-            return 1.0
-
-    trim = shot.options.get("trim")
-    frames = float(trim[1] - trim[0]) if isinstance(trim, (list, tuple)) and len(trim) == 2 else size(shot.capture)
-    return size(shot.mesh) * max(frames, 1.0)
 
 
 class _StatusPrinter:

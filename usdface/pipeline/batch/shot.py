@@ -10,6 +10,7 @@ the shot if that run completed it.
 from __future__ import annotations
 
 import json
+import os
 import time
 import traceback
 from pathlib import Path
@@ -237,3 +238,21 @@ def with_manifest_line(rec: dict, shot: Shot) -> dict:
     if rec.get("status") in ("failed", "unsupported") and shot.line:
         rec["manifestLine"] = shot.line
     return rec
+
+
+def shot_cost(shot: Shot) -> float:
+    """A relative estimate of a shot's run time, to hand out the longest shots first.
+
+    Writing the time-sampled points dominates a shot: its cost grows with vertices x frames. The
+    mesh file's size stands for the vertex count and the trimmed frame count (or the capture
+    file's size) for the frames; only the order matters.
+    """
+    def size(path) -> float:
+        try:
+            return float(os.path.getsize(path))
+        except (OSError, TypeError):
+            return 1.0
+
+    trim = shot.options.get("trim")
+    frames = float(trim[1] - trim[0]) if isinstance(trim, (list, tuple)) and len(trim) == 2 else size(shot.capture)
+    return size(shot.mesh) * max(frames, 1.0)
