@@ -37,7 +37,7 @@ from ..errors import MarkerError, OptionError
 from ..model.capture import Capture
 
 __all__ = ["choose_neutral", "set_neutral", "NeutralReport", "parse_neutral", "check_neutral_frames",
-           "set_rest_pose", "RestPoseReport", "NEUTRAL_MOTION_WARN_CM"]
+           "set_rest_pose", "neutral_motion", "RestPoseReport", "NEUTRAL_MOTION_WARN_CM"]
 
 #: warn when the markers move more than this over the neutral stretch (RMS deviation from the rest
 #: pose, cm): twice the largest RMS found on the still stretches of the three AnimFace takes (0.25-0.6
@@ -405,12 +405,7 @@ def set_rest_pose(capture: Capture, neutral=None, *, how: str | None = None,
         a, b, threshold = stretch.start, stretch.end, stretch.threshold
     how = how or label
     out = capture.replace(neutral_frame=frame, neutral_window=(a, b))
-    stretch_positions = capture.positions[a:b]
-    if capture.head_motion is None and b - a > 1:
-        # not stabilised: the head's rigid motion is not the face moving (stabilising removes it
-        # from the positions; here it is only left out of the measure)
-        stretch_positions = rest_mod.without_rigid_motion(stretch_positions, out.neutral)
-    rms, top = rest_mod.residual_motion(stretch_positions, out.neutral)
+    rms, top = neutral_motion(out)
     to_cm = _to_cm(capture.units)
     warnings = []
     if rms * to_cm > warn_cm:
@@ -424,6 +419,20 @@ def set_rest_pose(capture: Capture, neutral=None, *, how: str | None = None,
     step = {"step": "rest_pose", "how": how, "frame": int(frame), "frames": [int(a), int(b) - 1],
             "motionRmsCm": report.summary()["motionRmsCm"], "motionMaxCm": report.summary()["motionMaxCm"]}
     return out.replace(step=step), report
+
+
+def neutral_motion(capture: Capture) -> tuple[float, float]:
+    """(RMS, max) distance of the markers from the rest pose over the capture's neutral stretch
+    (position units). A capture that is not stabilised has each frame's rigid motion taken out
+    first: the head moving is not the face moving (stabilising removes it from the positions;
+    here it is only left out of the measure)."""
+    from . import rest as rest_mod
+
+    a, b = capture.neutral_frames
+    positions = capture.positions[a:b]
+    if capture.head_motion is None and b - a > 1:
+        positions = rest_mod.without_rigid_motion(positions, capture.neutral)
+    return rest_mod.residual_motion(positions, capture.neutral)
 
 
 def _to_cm(units) -> float:

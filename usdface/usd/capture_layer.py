@@ -176,7 +176,7 @@ def read_capture_layer(path: str | os.PathLike, *, stage: Usd.Stage | None = Non
 
 def _write_rest_pose(prim: Usd.Prim, capture: Capture) -> None:
     """The neutral stretch (time codes, inclusive), the rest pose and the motion over the stretch."""
-    from ..capture.rest import residual_motion
+    from ..capture.neutral import neutral_motion
 
     a, b = capture.neutral_frames
     start = capture.start_frame
@@ -185,7 +185,7 @@ def _write_rest_pose(prim: Usd.Prim, capture: Capture) -> None:
     rest = np.asarray(capture.neutral, dtype=np.float64)
     held = np.where(np.isfinite(rest), rest, 0.0)  # a marker without a rest position: 0, as the data says
     prim.GetAttribute("usdface:markerSet:restPoints").Set(Vt.Vec3fArray.FromNumpy(held.astype(np.float32)))
-    rms, top = residual_motion(capture.positions[a:b], rest)
+    rms, top = neutral_motion(capture)
     prim.GetAttribute("usdface:markerSet:neutralMotionRms").Set(float(rms))
     prim.GetAttribute("usdface:markerSet:neutralMotionMax").Set(float(top))
 
