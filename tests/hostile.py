@@ -9,6 +9,16 @@ import sys
 from pathlib import Path
 
 
+def terminal_signals() -> None:
+    """``preexec_fn`` for a command the test signals: SIGINT and SIGHUP as a terminal session gives
+    them. A test run started in the background (`pytest &`, nohup, some CI runners) passes them
+    ignored to its children, and usdface keeps an inherited ignore (as `nohup usdface ...` asks)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+
+
 def code_root() -> Path:
     """The source tree of the usdface under test (PYTHONPATH decides; a baseline tree works too)."""
     import usdface

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.hostile import terminal_signals
+
 from usdface.fileutil import file_digest, is_temporary_name
 
 SA = Path(__file__).resolve().parents[2] / "sample_assets"
@@ -23,9 +25,8 @@ INPUTS = [SA / "meshes" / "makehuman_hm08_face_cm.obj", SA / "meshes" / "mediapi
 
 
 def _manifest(folder: Path) -> Path:
-    """Four shots of a few seconds each (no cache: each computes its distances), long enough that a
-    quiet machine cannot finish the batch between seeing a shot at work and the signal landing."""
-    text = ["[batch]", 'summary = "out/summary.json"', "[defaults]", "trim = [0, 900]",
+    """Four shots of a few seconds each (no cache: each computes its distances)."""
+    text = ["[batch]", 'summary = "out/summary.json"', "[defaults]", "trim = [0, 400]",
             'output = "out/{mesh}/{capture}"']
     for mesh, layout in (("makehuman_hm08_face_cm", "makehuman_hm08_face"),
                          ("mediapipe_canonical_face_model_holes", "mediapipe_face_holes")):
@@ -53,7 +54,8 @@ def _start(manifest: Path, *args) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     return subprocess.Popen([sys.executable, "-m", "usdface", "batch", str(manifest), "--no-cache", "-q", *args],
                             cwd=manifest.parent, env=env, start_new_session=True, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=terminal_signals)
 
 
 def _wait_until_shots_run(p: subprocess.Popen, root: Path, timeout: float = 120.0) -> list[Path]:

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.hostile import terminal_signals
+
 from usdface.cli import main
 from usdface.errors import ResourceError
 from usdface.fileutil import FAULT_ENV, file_digest
@@ -182,11 +184,9 @@ def test_second_run_into_a_locked_folder_is_refused(old_shot, tmp_path, capsys):
 # -- signals --------------------------------------------------------------------------------------
 
 def _start(argv, **env) -> subprocess.Popen:
-    # SIGINT as a terminal's Ctrl-C finds it: a test run started in the background (`pytest &`,
-    # nohup) passes SIGINT ignored to its children, and Python then keeps it ignored
     return subprocess.Popen([sys.executable, "-m", "usdface", *argv], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ, **env),
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                            preexec_fn=terminal_signals)
 
 
 @pytest.mark.parametrize("sig,code,said", [(signal.SIGTERM, 143, "stopped by SIGTERM; partial work removed"),
@@ -208,6 +208,24 @@ def test_sigterm_is_handled_like_ctrl_c(old_shot, tmp_path, sig, code, said):
     assert p.returncode == code, err
     assert said in _one_line_error(err, "run")
     assert _digests(out) == before and leftovers(out) == [] and not (out / LOCK_NAME).exists()
+
+
+def test_a_run_started_with_nohup_keeps_going_through_a_hang_up(tmp_path):
+    """`nohup usdface run ...`: the hang-up the user asked to ignore stays ignored (usdface used to
+    install its own SIGHUP handler over nohup's, so closing the terminal stopped the run)."""
+    out = tmp_path / "shot"
+    p = subprocess.Popen([sys.executable, "-m", "usdface", *RUN, "--trim", "0", "400", "-o", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))
+    deadline = time.time() + 60
+    while not (out.is_dir() and any(x.name.startswith(".usdface-run-") for x in out.iterdir())) \
+            and time.time() < deadline:
+        time.sleep(0.05)
+    assert p.poll() is None, "the run ended before it could be signalled"
+    p.send_signal(signal.SIGHUP)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 0 and err == "", err
+    assert (out / "shot.usda").is_file() and leftovers(out) == []
 
 
 def test_a_closed_pipe_ends_the_output_quietly(tmp_path):

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.hostile import terminal_signals
+
 from usdface.cli import main
 from usdface.fileutil import file_digest
 
@@ -55,7 +57,7 @@ STOPPED = {signal.SIGTERM: "stopped by SIGTERM; partial work removed", signal.SI
 def _hooked(sig, name: str, argv, cwd) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-c", _HOOK, str(int(sig)), name, *map(os.fsdecode, argv)], cwd=cwd,
                           capture_output=True, text=True, timeout=600,
-                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                          preexec_fn=terminal_signals)
 
 
 def _plain(argv, cwd) -> subprocess.CompletedProcess:
@@ -160,7 +162,7 @@ def test_library_writers_follow_the_scheme(tmp_path, kind):
     assert any(".tmp-" in n for n in _hidden(tmp_path)), _hidden(tmp_path)
     stopped = subprocess.run([sys.executable, "-c", _HOOK, str(int(signal.SIGINT)), name, "--python", code],
                              cwd=tmp_path, capture_output=True, text=True, timeout=300,
-                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                             preexec_fn=terminal_signals)
     assert stopped.returncode != 0 and "KeyboardInterrupt" in stopped.stderr
     assert _hidden(tmp_path) == []  # its own temporary removed on the way out, the dead one's before
     again = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)

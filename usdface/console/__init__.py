@@ -87,13 +87,15 @@ def run_command(processor, args):
 
 class _terminate_as_interrupt:
     """SIGTERM and SIGHUP raise :class:`~usdface.errors.Interrupted` (like Ctrl-C), so partial work
-    is removed."""
+    is removed; one the process inherited ignored (nohup) stays ignored."""
 
     def __enter__(self):
         self.previous = {}
         if threading.current_thread() is threading.main_thread():
             for s in stop_signals():
-                if s != signal.SIGINT:  # Ctrl-C already raises KeyboardInterrupt
+                # Ctrl-C already raises KeyboardInterrupt; a signal the command was started with
+                # ignored (`nohup usdface ...`: SIGHUP) stays ignored, as the user asked
+                if s != signal.SIGINT and signal.getsignal(s) is not signal.SIG_IGN:
                     self.previous[s] = signal.signal(s, self._raise)
         return self
 

@@ -223,14 +223,17 @@ def _on_stop_signal(signum, frame) -> None:
 
 def install_worker_handlers(*, ignore_interrupt: bool) -> bool:
     """In a Dask worker process: SIGTERM and SIGHUP stop its shots cleanly (:func:`_on_stop_signal`);
-    with ``ignore_interrupt`` (a worker of the command's own local cluster) SIGINT is ignored, the
-    command stops the shots. Returns False where handlers cannot be set (not the main thread)."""
+    with ``ignore_interrupt`` (a worker of the command's own local cluster) SIGINT and SIGHUP are
+    ignored, the command stops the shots. Returns False where handlers cannot be set (not the main thread)."""
     if threading.current_thread() is not threading.main_thread():
         return False
     for s in stop_signals():
-        if s == signal.SIGINT:
-            if ignore_interrupt:
-                signal.signal(s, signal.SIG_IGN)
+        if ignore_interrupt and s != signal.SIGTERM:
+            # Ctrl-C and a hang-up reach the whole process group: the command handles them and
+            # stops the shots (it may itself ignore SIGHUP: nohup)
+            signal.signal(s, signal.SIG_IGN)
+        elif s == signal.SIGINT:
+            continue
         elif signal.getsignal(s) is not _on_stop_signal:
             _previous_handlers[s] = signal.getsignal(s)
             signal.signal(s, _on_stop_signal)
