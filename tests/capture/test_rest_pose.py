@@ -250,3 +250,17 @@ def test_robust_rest_pose_is_the_huber_estimate_of_a_slow_reference():
                 break
             mu = new
         np.testing.assert_allclose(fast[m], mu, atol=1e-8)
+
+
+def test_the_running_median_equals_scipys_median_filter():
+    """still_stretch's 3-sample running median (ends repeated) is scipy.ndimage's median_filter,
+    without importing scipy.ndimage at every command's start."""
+    from scipy.ndimage import median_filter
+
+    from usdface.capture.rest import _median_of_3
+
+    rng = np.random.default_rng(5)
+    for n in (3, 4, 11, 500):
+        x = rng.normal(size=n)
+        x[rng.integers(0, n, 2)] = np.inf  # frames without markers count as never still
+        np.testing.assert_array_equal(_median_of_3(x), median_filter(x, size=3, mode="nearest"))
