@@ -278,6 +278,30 @@ def test_a_bug_keeps_its_traceback_under_a_line_asking_to_report_it(tmp_path):
                      "ZeroDivisionError: a bug; please report it with the traceback below and the command line")
     assert rest.startswith("Traceback (most recent call last):") and rest.rstrip().endswith("ZeroDivisionError: a bug")
 
+@pytest.mark.parametrize("sig,code,said", [(signal.SIGINT, 130, "interrupted; partial work removed"),
+                                           (signal.SIGTERM, 143, "stopped by SIGTERM; partial work removed")])
+def test_a_signal_inside_an_extension_import_is_still_an_interruption(tmp_path, sig, code, said):
+    """A signal that lands while Python imports a C extension comes back as that module's
+    ImportError (numpy's import_array prints the KeyboardInterrupt and raises "numpy._core.multiarray
+    failed to import": seen once as an 'internal error' in a Ctrl-C test). The command still says
+    it was interrupted, with the signal's exit code, not that usdface has a bug."""
+    hook = textwrap.dedent(f"""
+        import os, sys
+        import usdface.console as console
+        def lazy_import_hit_by_a_signal(processor, args):
+            try:
+                os.kill(os.getpid(), {int(sig)})
+            except BaseException:
+                pass  # what the extension's C init does with it
+            raise ImportError("numpy._core.multiarray failed to import")
+        console.run_command = lazy_import_hit_by_a_signal
+        sys.exit(console.main(sys.argv[1:]))
+    """)
+    p = subprocess.run([sys.executable, "-c", hook, "info", str(SA / "capture" / "JawMoCap.usdc")],
+                       capture_output=True, text=True, timeout=60, cwd=tmp_path, preexec_fn=terminal_signals)
+    assert (p.returncode, p.stderr) == (code, f"usdface info: {said}\n")
+
+
 def test_sigkill_mid_commit_then_the_next_run_repairs(old_shot, tmp_path, capsys):
     out = tmp_path / "shot"
     shutil.copytree(old_shot, out)

@@ -89,18 +89,27 @@ class _terminate_as_interrupt:
     """SIGTERM and SIGHUP raise :class:`~usdface.errors.Interrupted` (like Ctrl-C), so partial work
     is removed; one the process inherited ignored (nohup) stays ignored."""
 
+    #: the stop signal received while the command ran (None: none): a signal landing inside a C
+    #: extension's import (numpy's import_array) comes back as that module's ImportError, which
+    #: must still read as the interruption it was, not as a bug
+    received = None
+
     def __enter__(self):
         self.previous = {}
+        _terminate_as_interrupt.received = None
         if threading.current_thread() is threading.main_thread():
             for s in stop_signals():
-                # Ctrl-C already raises KeyboardInterrupt; a signal the command was started with
-                # ignored (`nohup usdface ...`: SIGHUP) stays ignored, as the user asked
-                if s != signal.SIGINT and signal.getsignal(s) is not signal.SIG_IGN:
+                # a signal the command was started with ignored (`nohup usdface ...`: SIGHUP; a
+                # background job: SIGINT) stays ignored, as the user asked
+                if signal.getsignal(s) is not signal.SIG_IGN:
                     self.previous[s] = signal.signal(s, self._raise)
         return self
 
     @staticmethod
     def _raise(signum, frame):
+        _terminate_as_interrupt.received = signum
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt  # Ctrl-C, as Python raises it
         raise Interrupted(signum)
 
     def __exit__(self, *exc):
@@ -169,6 +178,14 @@ def _run(args, processor, name: str, parser) -> int:
     except Exception as exc:  # noqa: BLE001 - file system, memory and USD errors: one line, exit 1
         from ..fileutil import describe_exception, is_environment_fault
 
+        stopped_by = _terminate_as_interrupt.received
+        if stopped_by is not None:  # the signal, surfacing as another exception (see `received`)
+            if stopped_by == signal.SIGINT:
+                print(f"{name}: interrupted; partial work removed", file=sys.stderr)
+                return 130
+            stop = Interrupted(stopped_by)
+            print(f"{name}: stopped by {stop}; partial work removed", file=sys.stderr)
+            return stop.exit_code
         if not is_environment_fault(exc):
             # a bug: the traceback is what a report needs, under one line saying so
             from .. import __version__
