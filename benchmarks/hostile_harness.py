@@ -101,10 +101,13 @@ class Ctx:
             return None, (exc.stderr or b"").decode("utf-8", "backslashreplace"), b""
 
     def start(self, *args, cwd, prefix=None) -> subprocess.Popen:
-        """The command in a new session (its own process group, as a terminal's job), SIGINT default."""
+        """The command in a new session (its own process group, as a terminal's job), SIGINT and
+        SIGHUP default (a harness started in the background or under nohup passes them ignored, and
+        usdface keeps an inherited ignore)."""
         def setup():
             _limit()
             signal.signal(signal.SIGINT, signal.SIG_DFL)
+            signal.signal(signal.SIGHUP, signal.SIG_DFL)
         argv = (prefix or [sys.executable, "-m", "usdface"]) + self.argv(args)
         return subprocess.Popen(argv, cwd=cwd, env=self.env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                 start_new_session=True, preexec_fn=setup)
