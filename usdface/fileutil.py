@@ -117,25 +117,9 @@ def atomic_write(path: str | os.PathLike, mode: str = "w", *, encoding: str | No
     >>> with atomic_write("summary.json") as f:   # doctest: +SKIP
     ...     f.write(text)
     """
-    path = Path(path)
-    tmp = temporary_path(path)
     binary = "b" in mode
-    try:
-        inject_fault("create", path)
-        with open(tmp, mode, **({} if binary else {"encoding": encoding})) as f:
-            yield f
-            f.flush()
-            inject_fault("save", path)
-            os.fsync(f.fileno())
-        set_default_mode(tmp)
-        inject_fault("replace", path)
-        os.replace(tmp, path)
-        fsync_dir(path.parent)
-    except OSError as exc:
-        raise write_error(path, exc) from None
-    finally:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
+    with atomic_path(path) as tmp, open(tmp, mode, **({} if binary else {"encoding": encoding})) as f:
+        yield f
 
 
 @contextlib.contextmanager

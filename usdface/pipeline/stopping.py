@@ -29,6 +29,7 @@ import time
 from dataclasses import dataclass
 
 from ..errors import Interrupted, stop_signals
+from ..fileutil import stop_signals_deferred
 
 __all__ = ["StopRequested", "running_shot", "request_stop", "running_shots", "signals_deferred",
            "install_worker_handlers", "stop_shots", "STOP_WAIT"]
@@ -159,7 +160,7 @@ def signals_deferred():
     """SIGINT, SIGTERM and SIGHUP (main thread), or a stop request (a shot's thread), wait until
     the block ends (a commit is never stopped half-way), then act."""
     if threading.current_thread() is threading.main_thread():
-        with _main_thread_signals_deferred():
+        with stop_signals_deferred():  # the one main-thread deferral (fileutil)
             yield
         return
     ident = threading.get_ident()
@@ -181,27 +182,6 @@ def signals_deferred():
                 state.raised = state.raised or stop
             if stop:
                 raise StopRequested(state.signum)
-
-
-@contextlib.contextmanager
-def _main_thread_signals_deferred():
-    pending: list[int] = []
-    previous = {}
-    try:
-        for s in stop_signals():
-            previous[s] = signal.signal(s, lambda signum, frame: pending.append(signum))
-    except ValueError:  # not the main interpreter
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-        yield
-        return
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-        if pending:
-            signal.raise_signal(pending[0])
 
 
 # -- batch workers --------------------------------------------------------------------------------
