@@ -22,7 +22,7 @@ HOST_TAG = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname() or "localhost")[:4
 # ".<name>.tmp-<pid>[@<host>][-<token>][.<suffix>]", ".usdface-run-<pid>[@<host>][-<token>]" (and the
 # cache's ".tmp-" / ".trash-" folders);
 # names written before host tags existed (".x.tmp-<pid>-<token>.usdc") parse with host None
-# (any suffixes: a writer's own, and USD's ".XXXXXX" of the temporary it saves through)
+# (any suffixes: a writer's own, and USD's six random characters of the temporary it saves through)
 _OWNER_RE = re.compile(r"(?:\.tmp-|^\.trash-|^\.usdface-run-)(?P<pid>\d+)(?:@(?P<host>[A-Za-z0-9_]+))?(?:-[0-9a-f]+)?"
                        r"(?:\.[A-Za-z0-9]+)*$")
 _TEMP_FILE_RE = re.compile(r"^\..+\.tmp-")
@@ -32,7 +32,7 @@ _TEMP_NAME_RE = re.compile(r"^\.(?P<prefix>.+?)\.tmp-\d+(?:@[A-Za-z0-9_]+)?-[0-9
 #: the longest file name most file systems take (bytes)
 NAME_MAX = 255
 #: the longest temporary name usdface makes: USD saves a layer through a temporary of its own named
-#: after ours (``.<our name>.XXXXXX``), which must fit in NAME_MAX too
+#: after ours (``.<our name>.`` and six random characters), which must fit in NAME_MAX too
 TEMPORARY_NAME_MAX = NAME_MAX - 40
 
 
@@ -65,7 +65,7 @@ def _name_prefix(stem: str, budget: int) -> str:
 
 def temporaries_of(path: str | os.PathLike) -> list[Path]:
     """The temporaries beside ``path`` that are (or were) being written as ``path``: files, the
-    temporaries USD saves them through (``.<stem>.tmp-...XXXXXX``) and folders (a report's media)."""
+    temporaries USD saves them through (``.<stem>.tmp-...`` and six random characters) and folders (a report's media)."""
     p = Path(path)
     try:
         entries = list(os.scandir(p.parent if str(p.parent) else "."))

@@ -12,7 +12,7 @@ from ..capture.rigid import to_matrix
 from ..errors import OptionError
 from ..model.capture import Capture
 from ..model.mesh import Binding, FaceMesh
-from .binding import check_retarget, neutral_markers, unit_scale_for
+from .binding import bound_at, check_retarget, neutral_markers, unit_scale_for
 from .closest import SurfaceLocator
 from .surface_points import locator_for, project_to_surface
 from .symmetry import (
@@ -307,15 +307,6 @@ def bind_auto(
         mesh, neutral * unit_scale, locator=loc, angles=angles, symmetric=symmetric, max_iterations=max_iterations
     )
     sp = project_to_surface(mesh, al.apply(neutral * unit_scale), locator=loc)
-    return Binding(
-        names=capture.names,
-        face_indices=sp.face_indices,
-        triangle_vertices=sp.triangle_vertices,
-        barycentrics=sp.barycentrics,
-        nearest_vertices=sp.nearest_vertices,
-        residuals=sp.distances,
-        retarget=retarget,
-        capture_to_mesh=to_matrix(al.rotation, al.scale * unit_scale, al.translation),
-        unit_scale=unit_scale,
-        method="auto",
-    )
+    return bound_at(capture, sp, retarget=retarget,
+                    capture_to_mesh=to_matrix(al.rotation, al.scale * unit_scale, al.translation),
+                    unit_scale=unit_scale, method="auto")

@@ -143,6 +143,13 @@ def bind_layout(
                                             limit=FIT_MARKER_FRACTION * extent(sp.points))
     except ComputeError as e:
         raise ComputeError(f"layout binding: {e}") from None
+    return bound_at(capture, sp, retarget=retarget, capture_to_mesh=to_matrix(rot, s * unit_scale, t),
+                    unit_scale=unit_scale, method="layout")
+
+
+def bound_at(capture: Capture, sp, *, retarget: str, capture_to_mesh, unit_scale: float, method: str) -> Binding:
+    """The Binding of ``capture``'s markers to the surface points ``sp`` they project to (a
+    :class:`~usdface.mesh.surface_points.SurfacePoints`, one per marker), however they were aligned."""
     return Binding(
         names=capture.names,
         face_indices=sp.face_indices,
@@ -151,9 +158,9 @@ def bind_layout(
         nearest_vertices=sp.nearest_vertices,
         residuals=sp.distances,
         retarget=retarget,
-        capture_to_mesh=to_matrix(rot, s * unit_scale, t),
+        capture_to_mesh=capture_to_mesh,
         unit_scale=unit_scale,
-        method="layout",
+        method=method,
     )
 
 
